@@ -1,0 +1,199 @@
+//! Canonical lattice points and the one function that turns them into world
+//! positions.
+//!
+//! Every mesh vertex in Nebula starts as a [`LatticePoint`]: integer cube
+//! coordinates at the finest resolution plus an integer radial layer. Two
+//! chunks, or two cube faces, that share a lattice point hold the same integer
+//! value, and [`Cubesphere::position`] depends on nothing else, so they get the
+//! bit-identical f64 world position. Never build a position by adding float
+//! offsets per chunk.
+
+use glam::{DVec3, I64Vec3, IVec3};
+
+use crate::error::{MathError, finite, positive};
+use crate::{CubeFace, SphereMap};
+
+/// The largest lattice resolution (cells per face edge): 2³⁰, so cube
+/// coordinates and their doubles fit in `i32`/`i64` with room to spare.
+pub const MAX_RESOLUTION: u32 = 1 << 30;
+
+/// A point of the planet lattice in canonical form: integer cube coordinates
+/// (each in `[−N/2, N/2]`, one of them ±N/2) and a radial layer.
+///
+/// Equal points compare equal and hash equal whichever face they were made
+/// from. Build them with [`Cubesphere::lattice_point`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LatticePoint {
+    /// Cube coordinates (see the [`crate::face`] conventions).
+    pub cube: IVec3,
+    /// Radial layer: 0 at [`Cubesphere::radius`], growing outward.
+    pub layer: i32,
+}
+
+/// The geometry of one planet: its lattice resolution, radial spacing and
+/// cube-to-sphere map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cubesphere {
+    radius: f64,
+    resolution: u32,
+    layer_height: f64,
+    map: SphereMap,
+}
+
+impl Cubesphere {
+    /// A cubesphere with `resolution` lattice cells along each face edge
+    /// (even, at most [`MAX_RESOLUTION`]), radial layer 0 at `radius` metres
+    /// and `layer_height` metres between radial layers.
+    ///
+    /// # Errors
+    /// [`MathError`] for a non-finite or non-positive radius or layer height,
+    /// or a resolution that is odd, zero or too large.
+    pub fn new(radius: f64, resolution: u32, layer_height: f64, map: SphereMap) -> Result<Self, MathError> {
+        positive("radius", radius)?;
+        positive("layer height", layer_height)?;
+        if resolution < 2 || !resolution.is_multiple_of(2) || resolution > MAX_RESOLUTION {
+            return Err(MathError::BadResolution { got: u64::from(resolution), max: u64::from(MAX_RESOLUTION) });
+        }
+        Ok(Self { radius, resolution, layer_height, map })
+    }
+
+    /// Radius of radial layer 0, in metres.
+    #[must_use]
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// Lattice cells along each face edge at the finest resolution.
+    #[must_use]
+    pub fn resolution(&self) -> u32 {
+        self.resolution
+    }
+
+    /// Metres between consecutive radial layers.
+    #[must_use]
+    pub fn layer_height(&self) -> f64 {
+        self.layer_height
+    }
+
+    /// The cube-to-sphere map.
+    #[must_use]
+    pub fn map(&self) -> SphereMap {
+        self.map
+    }
+
+    /// Width of a lattice cell at layer 0 along a face's centre line, in
+    /// metres (equal for every cell on that line with the equi-angular map).
+    #[must_use]
+    pub fn cell_width(&self) -> f64 {
+        self.radius * std::f64::consts::FRAC_PI_2 / f64::from(self.resolution)
+    }
+
+    /// Radius of radial layer `layer` (may be fractional), in metres.
+    #[must_use]
+    pub fn layer_radius(&self, layer: f64) -> f64 {
+        self.radius + layer * self.layer_height
+    }
+
+    /// The radial layer (fractional) at `radius` metres from the centre.
+    #[must_use]
+    pub fn radius_to_layer(&self, radius: f64) -> f64 {
+        (radius - self.radius) / self.layer_height
+    }
+
+    /// The canonical lattice point at in-face coordinates `(i, j)` of `face`
+    /// and radial layer `layer`.
+    ///
+    /// # Errors
+    /// [`MathError::OutsideFace`] unless `0 ≤ i, j ≤ N`;
+    /// [`MathError::LayerBelowCentre`] if the layer's radius is not positive.
+    pub fn lattice_point(&self, face: CubeFace, i: i64, j: i64, layer: i64) -> Result<LatticePoint, MathError> {
+        let n = i64::from(self.resolution);
+        if !(0..=n).contains(&i) || !(0..=n).contains(&j) {
+            return Err(MathError::OutsideFace { face, i, j, resolution: self.resolution });
+        }
+        let radius = self.layer_radius(layer as f64);
+        let layer = i32::try_from(layer).ok().filter(|_| radius > 0.0);
+        let Some(layer) = layer else {
+            return Err(MathError::LayerBelowCentre { layer: i64::from(layer.unwrap_or(i32::MIN)), radius });
+        };
+        let cube = face.face_to_cube(i, j, n);
+        // In range by the check above: every component is within ±N/2 ≤ 2²⁹.
+        let cube = IVec3::new(cube.x as i32, cube.y as i32, cube.z as i32);
+        Ok(LatticePoint { cube, layer })
+    }
+
+    /// The in-face coordinates of `point` on `face`, if the point lies on it.
+    #[must_use]
+    pub fn face_coords(&self, point: LatticePoint, face: CubeFace) -> Option<(i64, i64)> {
+        let half = i64::from(self.resolution / 2);
+        let cube = I64Vec3::new(point.cube.x.into(), point.cube.y.into(), point.cube.z.into());
+        (cube.dot(face.normal()) == half).then(|| face.cube_to_face(cube, i64::from(self.resolution)))
+    }
+
+    /// **The** canonical world position of a lattice point, in metres, planet
+    /// centre at the origin.
+    ///
+    /// Depends only on the point's integer value, so every face and chunk
+    /// that shares a point gets the bit-identical result.
+    #[must_use]
+    pub fn position(&self, point: LatticePoint) -> DVec3 {
+        let half = f64::from(self.resolution / 2);
+        let t = point.cube.as_dvec3() / half;
+        self.map.direction(t) * self.layer_radius(f64::from(point.layer))
+    }
+
+    /// Unit direction from the centre through in-face coordinates `(i, j)`
+    /// of `face`, which may be fractional (e.g. a cell centre). For sampling
+    /// terrain, not for mesh vertices: those go through
+    /// [`Cubesphere::position`].
+    #[must_use]
+    pub fn direction(&self, face: CubeFace, i: f64, j: f64) -> DVec3 {
+        let half = f64::from(self.resolution / 2);
+        let t = face.normal().as_dvec3()
+            + face.u_axis().as_dvec3() * ((i - half) / half)
+            + face.v_axis().as_dvec3() * ((j - half) / half);
+        self.map.direction(t)
+    }
+
+    /// The face and fractional in-face coordinates `(i, j)` whose
+    /// [`Cubesphere::direction`] is closest to `world` (the inverse map).
+    ///
+    /// # Errors
+    /// [`MathError::NonFinite`] for NaN or infinite input,
+    /// [`MathError::NotPositive`] at the planet centre.
+    pub fn face_coords_of(&self, world: DVec3) -> Result<(CubeFace, f64, f64), MathError> {
+        for value in world.to_array() {
+            finite("world position", value)?;
+        }
+        let largest = world.abs().max_element();
+        positive("distance from the planet centre", largest)?;
+        let axis = if world.x.abs() == largest {
+            0
+        } else if world.y.abs() == largest {
+            1
+        } else {
+            2
+        };
+        let face = CubeFace::from_axis(axis, world[axis] > 0.0);
+        let on_plane = world / largest;
+        let a = on_plane.dot(face.u_axis().as_dvec3());
+        let b = on_plane.dot(face.v_axis().as_dvec3());
+        let unwarp = |x: f64| match self.map {
+            SphereMap::Gnomonic => x,
+            SphereMap::EquiAngular => x.atan() / std::f64::consts::FRAC_PI_4,
+        };
+        let (ta, tb) = (unwarp(a), unwarp(b));
+        let half = f64::from(self.resolution / 2);
+        Ok((face, ta * half + half, tb * half + half))
+    }
+}
+
+/// `point − origin` as an f32 offset: a vertex relative to its chunk origin,
+/// or a chunk origin relative to the camera for drawing.
+///
+/// The subtraction happens in f64, so the result is exact to f32 rounding of
+/// the *difference*, however far from the planet centre both points are.
+#[must_use]
+pub fn relative_position(point: DVec3, origin: DVec3) -> glam::Vec3 {
+    (point - origin).as_vec3()
+}

@@ -1,0 +1,3 @@
+//! Voxel generation benchmarks (filled in with the procedural planet).
+
+fn main() {}
