@@ -1,3 +1,57 @@
-//! Voxel generation benchmarks (filled in with the procedural planet).
+//! Voxel generation speed: one 32³ chunk (plus padding) at LOD 0 and at a
+//! coarse LOD on the Earth-sized planet, and 64 chunks sequentially vs. in
+//! parallel with rayon (same run, so the ratio is meaningful on a noisy
+//! machine). Run: `cargo bench -p nebula_voxel`.
+//!
+//! Measured 2026-11-22 on the 2-core dev machine: LOD 0 chunk 1.20 ms
+//! (27 M voxels/s), LOD 8 chunk 2.3 ms (14 M voxels/s); 64 chunks 81 ms
+//! sequential vs. 45 ms with rayon (1.80× on 2 threads, 47 M voxels/s).
 
-fn main() {}
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};
+use rayon::prelude::*;
+
+fn surface_chunk(planet: &ProceduralPlanet, lod: u8, x: u32, y: u32) -> ChunkKey {
+    let column = ChunkColumn { face: CubeFace::PosZ, lod, x, y };
+    let layers = planet.surface_chunk_layers(column).expect("column is on the planet");
+    column.chunk(*layers.start())
+}
+
+fn generate(c: &mut Criterion) {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(1)).expect("valid planet");
+    let mut group = c.benchmark_group("chunk");
+    group.throughput(Throughput::Elements(32 * 32 * 32));
+    for lod in [0u8, 8] {
+        let key = surface_chunk(&planet, lod, 5, 7);
+        let mut voxels = ChunkVoxels::new(key);
+        group.bench_with_input(BenchmarkId::new("fill_lod", lod), &key, |b, &key| {
+            b.iter(|| planet.fill_chunk(key, &mut voxels).expect("valid key"));
+        });
+    }
+    group.finish();
+
+    let keys: Vec<ChunkKey> = (0..64).map(|n| surface_chunk(&planet, 2, 100 + n % 8, 200 + n / 8)).collect();
+    let mut group = c.benchmark_group("many_chunks");
+    group.throughput(Throughput::Elements(64 * 32 * 32 * 32));
+    group.sample_size(20);
+    group.bench_function("sequential_64", |b| {
+        let mut voxels = ChunkVoxels::new(keys[0]);
+        b.iter(|| {
+            for &key in &keys {
+                planet.fill_chunk(key, &mut voxels).expect("valid key");
+            }
+        });
+    });
+    group.bench_function("rayon_64", |b| {
+        b.iter(|| {
+            keys.par_iter().for_each_init(
+                || ChunkVoxels::new(keys[0]),
+                |voxels, &key| planet.fill_chunk(key, voxels).expect("valid key"),
+            );
+        });
+    });
+    group.finish();
+}
+
+criterion_group!(benches, generate);
+criterion_main!(benches);

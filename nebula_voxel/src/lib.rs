@@ -1,1 +1,67 @@
-//! placeholder
+//! Voxel chunks of a cubesphere planet: keys, padded arrays, a seeded
+//! procedural planet, LOD sampling and edits.
+//!
+//! Every chunk is 32³ voxels at every LOD (a voxel at LOD `L` is `2^L` lattice
+//! cells wide and tall) and is handed out as a 34³ [`ChunkVoxels`] array: the
+//! chunk plus one voxel of padding read from its neighbours, across chunk and
+//! cube-face edges, in the index order block-mesh takes
+//! ([`PaddedChunkShape`]).
+//!
+//! Choices:
+//! - **Point sampling for LODs**: a coarse voxel is solid iff its centre is
+//!   below the terrain at its column centre (see [`ProceduralPlanet`]). Any
+//!   LOD is generated directly at the same cost per chunk; the error bound
+//!   δ(L) = (s/2 + 1/2 + S·(s − 1)) layers (s = 2^L, S = steepest slope) is
+//!   derived and tested in [`ProceduralPlanet`]'s docs.
+//! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
+//!   voxels plus per-LOD majority counts, so coarse LODs follow and nothing
+//!   is lost when chunks are regenerated.
+//! - **Noise**: the `noise` crate's Perlin fBm and ridged multifractal,
+//!   evaluated on the sphere so terrain is seamless across faces.
+//!
+//! Generation speed: `cargo bench -p nebula_voxel` (figures in the bench
+//! file's header).
+//!
+//! ```
+//! use nebula_voxel::{ChunkVoxels, PlanetSettings, ProceduralPlanet, VoxelSource};
+//!
+//! let planet = ProceduralPlanet::new(PlanetSettings::small(7))?;
+//! let layout = planet.layout();
+//! // The chunk column at the middle of face +Y, LOD 2, in the layers that
+//! // hold the surface.
+//! let column = nebula_voxel::ChunkColumn {
+//!     face: nebula_voxel::CubeFace::PosY,
+//!     lod: 2,
+//!     x: layout.chunks_per_edge(2) / 2,
+//!     y: layout.chunks_per_edge(2) / 2,
+//! };
+//! let mut voxels = ChunkVoxels::new(column.chunk(0));
+//! let mut solid = 0;
+//! for layer in planet.surface_chunk_layers(column)? {
+//!     planet.fill_chunk(column.chunk(layer), &mut voxels)?;
+//!     solid += voxels.solid_count();
+//! }
+//! // Some ground, some sky.
+//! assert!(solid > 0 && solid < 32 * 32 * 32 * 4);
+//! # Ok::<(), nebula_voxel::VoxelError>(())
+//! ```
+
+mod chunk;
+mod edits;
+mod error;
+mod layout;
+mod planet;
+mod source;
+mod voxel;
+
+pub use chunk::{ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PaddedChunkShape};
+pub use edits::EditedSource;
+pub use error::VoxelError;
+pub use layout::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, MAX_LOD, VoxelCoord};
+pub use nebula_math::{CubeFace, DVec3, FaceEdge};
+pub use planet::{PlanetSettings, ProceduralPlanet};
+pub use source::{SurfaceBounds, VoxelSource};
+pub use voxel::Voxel;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,274 @@
+//! Voxel edits layered over any [`VoxelSource`].
+//!
+//! Edits are made at LOD 0 and kept in an overlay beside the source, which is
+//! never modified: regenerating a chunk re-reads the overlay, so an edit
+//! cannot be lost. Coarser LODs see edits through the same rule a coarse
+//! voxel would get from its `s³` fine voxels by majority: the overlay counts,
+//! per coarse voxel, how many of its fine voxels the edits turned solid minus
+//! how many they turned to air (`net`), and
+//!
+//! ```text
+//!   solid fine voxels ≈ (base coarse voxel solid ? s³ : 0) + net
+//!   coarse voxel solid  ⇔  that count > s³ / 2
+//! ```
+//!
+//! A single dug voxel therefore disappears at LOD 0 only, while a crater
+//! shows at every LOD whose voxels are smaller than about twice the crater.
+
+use std::collections::{BTreeSet, HashMap, HashSet};
+
+use nebula_math::{DVec3, FaceEdge};
+
+use crate::{
+    CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PaddedChunkShape, SurfaceBounds,
+    Voxel, VoxelCoord, VoxelError, VoxelSource,
+};
+use ndshape::ConstShape;
+
+/// Edit counts of one coarse voxel.
+#[derive(Clone, Copy, Debug, Default)]
+struct CoarseEdit {
+    /// Fine voxels turned solid minus fine voxels turned to air.
+    net_solid: i64,
+    /// Material of the latest solid fine voxel written inside.
+    fill: Voxel,
+}
+
+/// A [`VoxelSource`] with LOD-0 edits on top (see the module docs).
+#[derive(Debug)]
+pub struct EditedSource<S> {
+    base: S,
+    /// LOD-0 voxels that differ from `base`.
+    fine: HashMap<VoxelCoord, Voxel>,
+    /// Per LOD 1..=max (index L − 1): edit counts of coarse voxels.
+    coarse: Vec<HashMap<VoxelCoord, CoarseEdit>>,
+    /// Chunks (any LOD) whose padded region holds a voxel the edits changed.
+    touched_chunks: HashSet<ChunkKey>,
+    /// Per column (any LOD): lowest and highest LOD-0 layer edited inside.
+    touched_columns: HashMap<ChunkColumn, (i64, i64)>,
+}
+
+impl<S: VoxelSource> EditedSource<S> {
+    /// Wraps `base` with no edits yet.
+    pub fn new(base: S) -> Self {
+        let lods = usize::from(base.layout().max_lod());
+        Self {
+            base,
+            fine: HashMap::new(),
+            coarse: vec![HashMap::new(); lods],
+            touched_chunks: HashSet::new(),
+            touched_columns: HashMap::new(),
+        }
+    }
+
+    /// The unedited source.
+    pub fn base(&self) -> &S {
+        &self.base
+    }
+
+    /// The LOD-0 voxels that differ from the base, for saving. Replaying
+    /// them with [`EditedSource::set_voxel`] on a fresh source restores the
+    /// same planet.
+    pub fn edits(&self) -> impl Iterator<Item = (VoxelCoord, Voxel)> + '_ {
+        self.fine.iter().map(|(&at, &voxel)| (at, voxel))
+    }
+
+    /// Sets one LOD-0 voxel. Returns the chunks, at every LOD, whose voxels
+    /// (padding included) changed and must be re-meshed, sorted.
+    ///
+    /// # Errors
+    /// [`VoxelError::VoxelOutOfRange`] for a coordinate off the planet or not
+    /// at LOD 0.
+    pub fn set_voxel(&mut self, at: VoxelCoord, voxel: Voxel) -> Result<Vec<ChunkKey>, VoxelError> {
+        let mut dirty = BTreeSet::new();
+        self.set_voxel_into(at, voxel, &mut dirty)?;
+        Ok(dirty.into_iter().collect())
+    }
+
+    /// Sets every LOD-0 voxel whose centre lies within `radius` metres of
+    /// `center` (across chunk and cube-face edges) to `voxel`: `Voxel::AIR`
+    /// digs a crater, a material builds a ball. Returns the dirty chunks.
+    ///
+    /// # Errors
+    /// [`VoxelError::NonFinite`] / [`VoxelError::OutOfRange`] for a bad
+    /// centre or radius (at most 64 voxels).
+    pub fn fill_sphere(&mut self, center: DVec3, radius: f64, voxel: Voxel) -> Result<Vec<ChunkKey>, VoxelError> {
+        let layout = *self.base.layout();
+        let sphere = layout.sphere();
+        let voxel_size = sphere.layer_height();
+        if !radius.is_finite() {
+            return Err(VoxelError::NonFinite { name: "radius", value: radius });
+        }
+        if !(0.0..=64.0 * voxel_size).contains(&radius) {
+            return Err(VoxelError::OutOfRange { name: "radius", requirement: "in [0, 64 voxels]", value: radius });
+        }
+        let (face, fi, fj) = sphere.face_coords_of(center)?;
+        let layer = sphere.radius_to_layer(center.length());
+        // Cells shrink towards face corners (by up to √2): widen the search.
+        let reach = (radius / layout.sphere().cell_width() * 1.5).ceil() as i64 + 1;
+        let reach_h = (radius / voxel_size).ceil() as i64 + 1;
+        let per_edge = i64::from(layout.voxels_per_edge(0));
+        let mut dirty = BTreeSet::new();
+        let mut seen = HashSet::new();
+        for di in -reach..=reach {
+            for dj in -reach..=reach {
+                let (ci, cj) = (fi.floor() as i64 + di, fj.floor() as i64 + dj);
+                let Some((f, i, j)) = face.wrap_cell(ci, cj, per_edge) else { continue };
+                if !seen.insert((f, i, j)) {
+                    continue;
+                }
+                let direction = sphere.direction(f, i as f64 + 0.5, j as f64 + 0.5);
+                for dh in -reach_h..=reach_h {
+                    let h = layer.floor() as i64 + dh;
+                    let world = direction * sphere.layer_radius(h as f64 + 0.5);
+                    if world.distance(center) <= radius {
+                        let at = VoxelCoord { face: f, lod: 0, i: i as u32, j: j as u32, h: h as i32 };
+                        self.set_voxel_into(at, voxel, &mut dirty)?;
+                    }
+                }
+            }
+        }
+        Ok(dirty.into_iter().collect())
+    }
+
+    fn set_voxel_into(
+        &mut self,
+        at: VoxelCoord,
+        voxel: Voxel,
+        dirty: &mut BTreeSet<ChunkKey>,
+    ) -> Result<(), VoxelError> {
+        if at.lod != 0 {
+            return Err(VoxelError::VoxelOutOfRange { at, reason: "edits are made at LOD 0".into() });
+        }
+        let layout = *self.base.layout();
+        layout.check_voxel(at)?;
+        let old = self.voxel(at)?;
+        if old == voxel {
+            return Ok(());
+        }
+        // Coarse voxels that contain `at`, and their values before.
+        let mut chain = Vec::with_capacity(self.coarse.len());
+        let mut cell = at;
+        for _ in 0..self.coarse.len() {
+            cell = cell.parent();
+            chain.push((cell, self.voxel(cell)?));
+        }
+        if self.base.voxel(at)? == voxel {
+            self.fine.remove(&at);
+        } else {
+            self.fine.insert(at, voxel);
+        }
+        let delta = i64::from(voxel.is_solid()) - i64::from(old.is_solid());
+        self.mark_changed(&layout, at, dirty);
+        for (level, &(cell, before)) in chain.iter().enumerate() {
+            let entry = self.coarse[level].entry(cell).or_default();
+            entry.net_solid += delta;
+            if voxel.is_solid() {
+                entry.fill = voxel;
+            }
+            if self.voxel(cell)? != before {
+                self.mark_changed(&layout, cell, dirty);
+            }
+        }
+        Ok(())
+    }
+
+    /// Records that the effective value of `cell` changed: its chunk and
+    /// every chunk holding it as padding become dirty.
+    fn mark_changed(&mut self, layout: &ChunkLayout, cell: VoxelCoord, dirty: &mut BTreeSet<ChunkKey>) {
+        let key = layout.chunk_of(cell);
+        let last = CHUNK_SIZE - 1;
+        let local_h = cell.h.rem_euclid(CHUNK_SIZE as i32);
+        let mut keys = vec![key];
+        for (edge, on_border) in [
+            (FaceEdge::NegU, cell.i.is_multiple_of(CHUNK_SIZE)),
+            (FaceEdge::PosU, cell.i % CHUNK_SIZE == last),
+            (FaceEdge::NegV, cell.j.is_multiple_of(CHUNK_SIZE)),
+            (FaceEdge::PosV, cell.j % CHUNK_SIZE == last),
+        ] {
+            if on_border {
+                keys.push(layout.neighbor(key, edge));
+            }
+        }
+        if local_h == 0 {
+            keys.push(ChunkKey { layer: key.layer - 1, ..key });
+        }
+        if local_h == last as i32 {
+            keys.push(ChunkKey { layer: key.layer + 1, ..key });
+        }
+        let span = layout.voxel_span(cell.lod);
+        let (bottom, top) = (i64::from(cell.h) * span, i64::from(cell.h) * span + span - 1);
+        let range = self.touched_columns.entry(key.column()).or_insert((bottom, top));
+        *range = (range.0.min(bottom), range.1.max(top));
+        for key in keys {
+            self.touched_chunks.insert(key);
+            dirty.insert(key);
+        }
+    }
+
+    /// The effective voxel given the base's value for the same coordinates.
+    fn edited(&self, at: VoxelCoord, base: Voxel) -> Voxel {
+        if at.lod == 0 {
+            return self.fine.get(&at).copied().unwrap_or(base);
+        }
+        let Some(edit) = self.coarse[usize::from(at.lod) - 1].get(&at) else { return base };
+        let volume = 1i64 << (3 * u32::from(at.lod));
+        let solid = if base.is_solid() { volume } else { 0 } + edit.net_solid;
+        match (2 * solid > volume, base.is_solid()) {
+            (true, true) => base,
+            (true, false) => edit.fill,
+            (false, _) => Voxel::AIR,
+        }
+    }
+}
+
+impl<S: VoxelSource> VoxelSource for EditedSource<S> {
+    fn layout(&self) -> &ChunkLayout {
+        self.base.layout()
+    }
+
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
+        Ok(self.edited(at, self.base.voxel(at)?))
+    }
+
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
+        self.base.fill_chunk(key, out)?;
+        if !self.touched_chunks.contains(&key) {
+            return Ok(());
+        }
+        let per_edge = i64::from(self.layout().voxels_per_edge(key.lod));
+        let size = i64::from(CHUNK_SIZE);
+        let voxels = out.as_mut_slice();
+        for z in 0..PADDED_CHUNK_SIZE {
+            for x in 0..PADDED_CHUNK_SIZE {
+                let (ci, cj) = (i64::from(key.x) * size + i64::from(x) - 1, i64::from(key.y) * size + i64::from(z) - 1);
+                // Corner-gap padding has no voxel of its own: leave the base's.
+                let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
+                for y in 0..PADDED_CHUNK_SIZE {
+                    let h = i64::from(key.layer) * size + i64::from(y) - 1;
+                    let at = VoxelCoord { face, lod: key.lod, i: i as u32, j: j as u32, h: h as i32 };
+                    let index = PaddedChunkShape::linearize([x, y, z]) as usize;
+                    voxels[index] = self.edited(at, voxels[index]);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+        let mut bounds = self.base.surface_bounds(column)?;
+        if let Some(&(low, high)) = self.touched_columns.get(&column) {
+            let span = self.layout().voxel_span(column.lod);
+            bounds.min_layer = bounds.min_layer.min(low - span);
+            bounds.max_layer = bounds.max_layer.max(high + span);
+            let sphere = self.layout().sphere();
+            bounds.min_radius = sphere.layer_radius(bounds.min_layer as f64);
+            bounds.max_radius = sphere.layer_radius(bounds.max_layer as f64 + 1.0);
+        }
+        Ok(bounds)
+    }
+
+    fn geometric_error(&self, lod: u8) -> f64 {
+        self.base.geometric_error(lod)
+    }
+}

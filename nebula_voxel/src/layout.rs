@@ -1,0 +1,252 @@
+//! Chunk keys and the chunk layout of a planet.
+//!
+//! ```text
+//!   LOD 0 = finest. A chunk at LOD L is 32 × 32 × 32 voxels, each voxel
+//!   s = 2^L lattice cells wide and s radial layers tall:
+//!
+//!      face (u, v)  ── chunks per face edge at LOD L = 2^(max_lod − L)
+//!      ┌────┬────┐
+//!      │ 0,1│ 1,1│     chunk (x, y) covers lattice cells
+//!      ├────┼────┤       i ∈ [x·32s, (x+1)·32s),  j ∈ [y·32s, (y+1)·32s)
+//!      │ 0,0│ 1,0│     and radial layer ℓ covers layers
+//!      └────┴────┘       h ∈ [ℓ·32s, (ℓ+1)·32s)
+//!
+//!   Local voxel axes: x = u (i), y = radial (h), z = v (j); see
+//!   `nebula_math::face` for why that frame is left-handed in world space.
+//! ```
+
+use nebula_math::{CubeFace, Cubesphere, DVec3, FaceEdge, LatticePoint};
+
+use crate::VoxelError;
+
+/// Voxels along each edge of a chunk, at every LOD.
+pub const CHUNK_SIZE: u32 = 32;
+
+/// The coarsest LOD any planet may have: 2³⁰ cells per face edge is the
+/// limit of `nebula_math`'s lattice, and 32 · 2²⁴ < 2³⁰.
+pub const MAX_LOD: u8 = 24;
+
+/// A column of chunks: a quadtree node of one cube face at one LOD.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ChunkColumn {
+    /// The cube face.
+    pub face: CubeFace,
+    /// Level of detail: 0 is the finest.
+    pub lod: u8,
+    /// Chunk index along the face's u axis.
+    pub x: u32,
+    /// Chunk index along the face's v axis.
+    pub y: u32,
+}
+
+/// One chunk: a column and a radial layer of chunks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ChunkKey {
+    /// The cube face.
+    pub face: CubeFace,
+    /// Level of detail: 0 is the finest.
+    pub lod: u8,
+    /// Chunk index along the face's u axis.
+    pub x: u32,
+    /// Chunk index along the face's v axis.
+    pub y: u32,
+    /// Radial layer of chunks; layer 0 starts at the planet's base radius.
+    pub layer: i32,
+}
+
+impl ChunkKey {
+    /// The column this chunk stands in.
+    #[must_use]
+    pub fn column(self) -> ChunkColumn {
+        ChunkColumn { face: self.face, lod: self.lod, x: self.x, y: self.y }
+    }
+}
+
+impl ChunkColumn {
+    /// The chunk of this column in radial layer `layer`.
+    #[must_use]
+    pub fn chunk(self, layer: i32) -> ChunkKey {
+        ChunkKey { face: self.face, lod: self.lod, x: self.x, y: self.y, layer }
+    }
+}
+
+/// A voxel at some LOD: face, column `(i, j)` and layer `h`, all counted in
+/// voxels of that LOD (so `i, j < N / 2^lod`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct VoxelCoord {
+    /// The cube face.
+    pub face: CubeFace,
+    /// Level of detail: 0 is the finest.
+    pub lod: u8,
+    /// Column index along u.
+    pub i: u32,
+    /// Column index along v.
+    pub j: u32,
+    /// Radial index; 0 is the first voxel above the base radius.
+    pub h: i32,
+}
+
+impl VoxelCoord {
+    /// The voxel one LOD coarser that contains this one.
+    #[must_use]
+    pub fn parent(self) -> VoxelCoord {
+        VoxelCoord { lod: self.lod + 1, i: self.i / 2, j: self.j / 2, h: self.h.div_euclid(2), ..self }
+    }
+}
+
+/// How a planet is cut into chunks: its lattice and its number of LODs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChunkLayout {
+    sphere: Cubesphere,
+    max_lod: u8,
+}
+
+impl ChunkLayout {
+    /// A layout on `sphere`, whose resolution must be `32 · 2^max_lod`.
+    ///
+    /// # Errors
+    /// [`VoxelError::LodOutOfRange`] if `max_lod > MAX_LOD` or the resolution
+    /// does not match.
+    pub fn new(sphere: Cubesphere, max_lod: u8) -> Result<Self, VoxelError> {
+        if max_lod > MAX_LOD || sphere.resolution() != CHUNK_SIZE << max_lod {
+            return Err(VoxelError::LodOutOfRange { lod: max_lod, max_lod: MAX_LOD });
+        }
+        Ok(Self { sphere, max_lod })
+    }
+
+    /// The planet's lattice geometry.
+    #[must_use]
+    pub fn sphere(&self) -> &Cubesphere {
+        &self.sphere
+    }
+
+    /// The coarsest LOD: one chunk column covers a whole face.
+    #[must_use]
+    pub fn max_lod(&self) -> u8 {
+        self.max_lod
+    }
+
+    /// Lattice cells (and radial layers) per voxel at `lod`: 2^lod.
+    #[must_use]
+    pub fn voxel_span(&self, lod: u8) -> i64 {
+        1 << lod
+    }
+
+    /// Voxel columns along each face edge at `lod`.
+    #[must_use]
+    pub fn voxels_per_edge(&self, lod: u8) -> u32 {
+        self.sphere.resolution() >> lod
+    }
+
+    /// Chunk columns along each face edge at `lod`.
+    #[must_use]
+    pub fn chunks_per_edge(&self, lod: u8) -> u32 {
+        1 << (self.max_lod.saturating_sub(lod))
+    }
+
+    /// Checks that `lod` exists on this planet.
+    ///
+    /// # Errors
+    /// [`VoxelError::LodOutOfRange`].
+    pub fn check_lod(&self, lod: u8) -> Result<(), VoxelError> {
+        if lod > self.max_lod { Err(VoxelError::LodOutOfRange { lod, max_lod: self.max_lod }) } else { Ok(()) }
+    }
+
+    /// Checks that `key` names a chunk of this planet: LOD in range, column
+    /// on the face, and the chunk's top above the planet centre. (A coarse
+    /// chunk may reach below the centre: on a small planet one LOD-max chunk
+    /// is taller than the radius. Its voxels there are solid and never
+    /// meshed.)
+    ///
+    /// # Errors
+    /// [`VoxelError::LodOutOfRange`] or [`VoxelError::ChunkOutOfRange`].
+    pub fn check_key(&self, key: ChunkKey) -> Result<(), VoxelError> {
+        self.check_lod(key.lod)?;
+        let per_edge = self.chunks_per_edge(key.lod);
+        if key.x >= per_edge || key.y >= per_edge {
+            return Err(VoxelError::ChunkOutOfRange {
+                key,
+                reason: format!("column ({}, {}) is not below {per_edge} at LOD {}", key.x, key.y, key.lod),
+            });
+        }
+        let bottom = i64::from(key.layer) * i64::from(CHUNK_SIZE) * self.voxel_span(key.lod);
+        let top = bottom + i64::from(CHUNK_SIZE) * self.voxel_span(key.lod);
+        if self.sphere.layer_radius(top as f64) <= 0.0
+            || top > i64::from(i32::MAX / 2)
+            || bottom < i64::from(i32::MIN / 2)
+        {
+            return Err(VoxelError::ChunkOutOfRange {
+                key,
+                reason: format!("radial layers {bottom}..{top} are below the planet centre or too high"),
+            });
+        }
+        Ok(())
+    }
+
+    /// Checks that `at` names a voxel of this planet: LOD and column in
+    /// range, and its chunk valid ([`ChunkLayout::check_key`]).
+    ///
+    /// # Errors
+    /// [`VoxelError::LodOutOfRange`] or [`VoxelError::VoxelOutOfRange`].
+    pub fn check_voxel(&self, at: VoxelCoord) -> Result<(), VoxelError> {
+        self.check_lod(at.lod)?;
+        let per_edge = self.voxels_per_edge(at.lod);
+        if at.i >= per_edge || at.j >= per_edge {
+            return Err(VoxelError::VoxelOutOfRange { at, reason: format!("column not below {per_edge}") });
+        }
+        // A voxel exists wherever its chunk does.
+        self.check_key(self.chunk_of(at))
+            .map_err(|_| VoxelError::VoxelOutOfRange { at, reason: "its chunk is below the planet centre".into() })
+    }
+
+    /// The chunk that contains voxel `at` (at the voxel's LOD).
+    #[must_use]
+    pub fn chunk_of(&self, at: VoxelCoord) -> ChunkKey {
+        ChunkKey {
+            face: at.face,
+            lod: at.lod,
+            x: at.i / CHUNK_SIZE,
+            y: at.j / CHUNK_SIZE,
+            layer: at.h.div_euclid(CHUNK_SIZE as i32),
+        }
+    }
+
+    /// The same-LOD chunk across `edge` of `key`'s column, on this face or
+    /// the neighbouring one. Its `x`/`y` are in the neighbour face's frame.
+    #[must_use]
+    pub fn neighbor(&self, key: ChunkKey, edge: FaceEdge) -> ChunkKey {
+        let (di, dj) = edge.step();
+        let per_edge = i64::from(self.chunks_per_edge(key.lod));
+        let (face, x, y) = key.face.wrap_cell(i64::from(key.x) + di, i64::from(key.y) + dj, per_edge).unwrap_or((
+            key.face,
+            i64::from(key.x),
+            i64::from(key.y),
+        ));
+        ChunkKey { face, x: x as u32, y: y as u32, ..key }
+    }
+
+    /// The canonical lattice point at local lattice coordinates
+    /// `(lx, ly, lz)` (each in `0..=32`, in voxels of the chunk's LOD) of
+    /// chunk `key`. `key` must be valid ([`ChunkLayout::check_key`]).
+    ///
+    /// # Errors
+    /// [`VoxelError::Math`] if the point is off the face or below the centre.
+    pub fn lattice_point(&self, key: ChunkKey, local: [i64; 3]) -> Result<LatticePoint, VoxelError> {
+        let span = self.voxel_span(key.lod);
+        let chunk = i64::from(CHUNK_SIZE) * span;
+        let i = i64::from(key.x) * chunk + local[0] * span;
+        let j = i64::from(key.y) * chunk + local[2] * span;
+        let h = i64::from(key.layer) * chunk + local[1] * span;
+        Ok(self.sphere.lattice_point(key.face, i, j, h)?)
+    }
+
+    /// World position (f64, metres) of the chunk's origin: its lattice corner
+    /// with the smallest `(i, j, h)`.
+    ///
+    /// # Errors
+    /// As [`ChunkLayout::check_key`].
+    pub fn chunk_origin(&self, key: ChunkKey) -> Result<DVec3, VoxelError> {
+        self.check_key(key)?;
+        Ok(self.sphere.position(self.lattice_point(key, [0, 0, 0])?))
+    }
+}

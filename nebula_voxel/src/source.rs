@@ -1,0 +1,67 @@
+//! Where voxels come from.
+
+use std::ops::RangeInclusive;
+
+use crate::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, Voxel, VoxelCoord, VoxelError};
+
+/// Conservative bounds of the voxel surface over a chunk column.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceBounds {
+    /// Lowest LOD-0 radial layer that may hold a solid voxel with air
+    /// above or beside it, at the column's LOD.
+    pub min_layer: i64,
+    /// Highest such layer.
+    pub max_layer: i64,
+    /// Radius of the bottom of `min_layer`, metres.
+    pub min_radius: f64,
+    /// Radius of the top of `max_layer`, metres.
+    pub max_radius: f64,
+}
+
+/// A planet's voxels at any LOD, for any chunk.
+///
+/// Implementations are deterministic: the same key always gives the same
+/// voxels, so two chunks that read each other's border as padding agree.
+pub trait VoxelSource: Send + Sync {
+    /// The planet's chunk layout.
+    fn layout(&self) -> &ChunkLayout;
+
+    /// One voxel at any LOD.
+    ///
+    /// # Errors
+    /// [`VoxelError`] for coordinates off the planet.
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError>;
+
+    /// Fills `out` with chunk `key` and its one-voxel padding (read across
+    /// chunk and cube-face edges), and sets `out`'s key.
+    ///
+    /// # Errors
+    /// [`VoxelError`] for a key that is not a chunk of this planet.
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError>;
+
+    /// Conservative surface bounds over `column` at its LOD.
+    ///
+    /// # Errors
+    /// [`VoxelError`] for a column that is not on this planet.
+    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError>;
+
+    /// δ(L): a bound, in metres, on how far the voxel surface at `lod` lies
+    /// from the LOD-0 voxel surface, measured radially. 0 at LOD 0.
+    fn geometric_error(&self, lod: u8) -> f64;
+
+    /// The radial chunk layers of `column` that can contain surface.
+    ///
+    /// # Errors
+    /// As [`VoxelSource::surface_bounds`].
+    fn surface_chunk_layers(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
+        let bounds = self.surface_bounds(column)?;
+        let chunk_layers = i64::from(CHUNK_SIZE) * self.layout().voxel_span(column.lod);
+        let low = bounds.min_layer.div_euclid(chunk_layers);
+        let high = bounds.max_layer.div_euclid(chunk_layers);
+        Ok(clamp_i32(low)..=clamp_i32(high))
+    }
+}
+
+fn clamp_i32(value: i64) -> i32 {
+    value.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}

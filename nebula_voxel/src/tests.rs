@@ -1,0 +1,310 @@
+//! Tests of chunk layout, the procedural planet and edits.
+
+use std::sync::OnceLock;
+
+use proptest::prelude::*;
+
+use crate::*;
+
+fn small() -> &'static ProceduralPlanet {
+    static PLANET: OnceLock<ProceduralPlanet> = OnceLock::new();
+    PLANET.get_or_init(|| ProceduralPlanet::new(PlanetSettings::small(7)).unwrap())
+}
+
+/// The LOD-0-layer index of the top of the solid voxels in a column (the
+/// first air voxel above solid), found by bisection between two layers known
+/// to be solid and air.
+fn column_top(source: &impl VoxelSource, face: CubeFace, lod: u8, i: u32, j: u32) -> i64 {
+    let span = source.layout().voxel_span(lod);
+    let limit = (source.layout().sphere().radius() * 0.4 / source.layout().sphere().layer_height()) as i64 / span;
+    let solid = |h: i64| source.voxel(VoxelCoord { face, lod, i, j, h: h as i32 }).unwrap().is_solid();
+    let (mut low, mut high) = (-limit, limit);
+    assert!(solid(low) && !solid(high));
+    while high - low > 1 {
+        let mid = (low + high) / 2;
+        if solid(mid) { low = mid } else { high = mid }
+    }
+    high * span
+}
+
+#[test]
+fn settings_are_checked() {
+    let bad = |change: fn(&mut PlanetSettings)| {
+        let mut settings = PlanetSettings::small(1);
+        change(&mut settings);
+        ProceduralPlanet::new(settings).unwrap_err()
+    };
+    assert!(matches!(bad(|s| s.radius = f64::NAN), VoxelError::NonFinite { name: "radius", .. }));
+    assert!(matches!(bad(|s| s.radius = -1.0), VoxelError::OutOfRange { name: "radius", .. }));
+    assert!(matches!(bad(|s| s.voxel_size = 0.0), VoxelError::OutOfRange { name: "voxel size", .. }));
+    assert!(matches!(bad(|s| s.voxel_size = 1e-9), VoxelError::OutOfRange { name: "voxel size", .. }));
+    assert!(matches!(bad(|s| s.amplitude = f64::INFINITY), VoxelError::NonFinite { name: "amplitude", .. }));
+    assert!(matches!(bad(|s| s.amplitude = 1_000.0), VoxelError::OutOfRange { name: "amplitude", .. }));
+    assert!(matches!(bad(|s| s.amplitude = -1.0), VoxelError::OutOfRange { name: "amplitude", .. }));
+    assert!(matches!(bad(|s| s.feature_size = 0.0), VoxelError::OutOfRange { name: "feature size", .. }));
+    let message = bad(|s| s.radius = -3.0).to_string();
+    assert!(message.contains("-3"), "{message}");
+}
+
+#[test]
+fn keys_and_arrays_are_checked() {
+    let layout = small().layout();
+    let max = layout.max_lod();
+    let key = |lod, x, y, layer| ChunkKey { face: CubeFace::NegZ, lod, x, y, layer };
+    assert!(layout.check_key(key(max, 0, 0, 0)).is_ok());
+    assert!(matches!(layout.check_key(key(max + 1, 0, 0, 0)), Err(VoxelError::LodOutOfRange { .. })));
+    assert!(matches!(layout.check_key(key(max, 1, 0, 0)), Err(VoxelError::ChunkOutOfRange { .. })));
+    assert!(matches!(layout.check_key(key(0, 0, 1 << max, 0)), Err(VoxelError::ChunkOutOfRange { .. })));
+    assert!(matches!(layout.check_key(key(0, 0, 0, -1_000_000)), Err(VoxelError::ChunkOutOfRange { .. })));
+    assert!(matches!(layout.check_key(key(0, 0, 0, i32::MAX)), Err(VoxelError::ChunkOutOfRange { .. })));
+    let mut out = ChunkVoxels::new(key(0, 0, 0, 0));
+    assert!(small().fill_chunk(key(max + 3, 0, 0, 0), &mut out).is_err());
+    assert!(matches!(
+        ChunkVoxels::from_voxels(key(0, 0, 0, 0), vec![Voxel::AIR; 32 * 32 * 32]),
+        Err(VoxelError::WrongVoxelCount { expected: 39_304, got: 32_768 })
+    ));
+    assert!(ChunkVoxels::from_voxels(key(0, 0, 0, 0), vec![Voxel::STONE; PADDED_CHUNK_VOLUME]).is_ok());
+    assert_eq!(out.get([34, 0, 0]), None);
+    assert!(!out.set([0, 34, 0], Voxel::STONE));
+    assert!(out.set([33, 33, 33], Voxel::STONE));
+    assert_eq!(out.get([33, 33, 33]), Some(Voxel::STONE));
+    let at = VoxelCoord { face: CubeFace::PosX, lod: 0, i: 32 << max, j: 0, h: 0 };
+    assert!(matches!(small().voxel(at), Err(VoxelError::VoxelOutOfRange { .. })));
+}
+
+#[test]
+fn earth_sized_planet_is_valid() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
+    let layout = earth.layout();
+    assert_eq!(layout.max_lod(), 18);
+    assert!((earth.voxel_size() - 1.193).abs() < 0.001, "{}", earth.voxel_size());
+    // A LOD-0 chunk at the surface, somewhere on face -X.
+    let column = ChunkColumn { face: CubeFace::NegX, lod: 0, x: 91_234, y: 200_001 };
+    let mut voxels = ChunkVoxels::new(column.chunk(0));
+    let layers = earth.surface_chunk_layers(column).unwrap();
+    assert!(layers.end() - layers.start() < 8, "{layers:?}");
+    let mut solid = 0;
+    for layer in layers.clone() {
+        earth.fill_chunk(column.chunk(layer), &mut voxels).unwrap();
+        solid += voxels.solid_count();
+    }
+    assert!(solid > 0 && solid < 32 * 32 * 32 * (layers.count()), "{solid}");
+    println!(
+        "earth: max slope S = {:.2} layers/cell, δ(1) = {:.2} m, δ(10) = {:.0} m",
+        earth.max_slope(),
+        earth.geometric_error(1),
+        earth.geometric_error(10)
+    );
+    // Chunk origins at Earth scale stay on the sphere.
+    let origin = layout.chunk_origin(column.chunk(0)).unwrap();
+    assert!((origin.length() - 6_371_000.0).abs() < 1e-6);
+}
+
+#[test]
+fn geometric_error_bounds_the_voxel_tops() {
+    // For random coarse columns, every LOD-0 column below has its top within
+    // δ(L) of the coarse top (places unrelated to the ones S was measured at).
+    let planet = small();
+    let layout = planet.layout();
+    let mut worst_ratio = 0.0_f64;
+    let mut state = 12345u64;
+    for sample in 0..48 {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let lod = 1 + (sample % 4) as u8;
+        let face = CubeFace::ALL[sample % 6];
+        let per_edge = layout.voxels_per_edge(lod);
+        let (ci, cj) = ((state >> 20) as u32 % per_edge, (state >> 40) as u32 % per_edge);
+        let coarse_top = column_top(planet, face, lod, ci, cj);
+        let span = layout.voxel_span(lod) as u32;
+        let bound = planet.geometric_error(lod) / layout.sphere().layer_height();
+        for a in 0..span {
+            for b in 0..span {
+                let fine_top = column_top(planet, face, 0, ci * span + a, cj * span + b);
+                let error = (fine_top - coarse_top).abs() as f64;
+                assert!(error <= bound, "LOD {lod} column ({ci}, {cj}): error {error} > bound {bound}");
+                worst_ratio = worst_ratio.max(error / bound);
+            }
+        }
+    }
+    println!("worst voxel-top error / δ bound: {worst_ratio:.2} (S = {:.2})", planet.max_slope());
+    assert!(worst_ratio > 0.2, "the bound is far too loose: {worst_ratio}");
+}
+
+#[test]
+fn edits_show_at_lod_0_survive_refills_and_mark_dirty_chunks() {
+    let mut edited = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+    let layout = *edited.layout();
+    // The top solid voxel of a column on a chunk's +U border.
+    let (face, i, j) = (CubeFace::PosZ, 31, 40);
+    let top = column_top(&edited, face, 0, i, j) as i32;
+    let at = VoxelCoord { face, lod: 0, i, j, h: top - 1 };
+    assert!(edited.voxel(at).unwrap().is_solid());
+    let dirty = edited.set_voxel(at, Voxel::AIR).unwrap();
+    let key = layout.chunk_of(at);
+    assert!(dirty.contains(&key));
+    assert!(dirty.contains(&layout.neighbor(key, FaceEdge::PosU)), "neighbour holding it as padding");
+    assert!(dirty.iter().all(|k| k.lod == 0), "one voxel changes no coarse voxel: {dirty:?}");
+    assert_eq!(edited.voxel(at).unwrap(), Voxel::AIR);
+    let mut voxels = ChunkVoxels::new(key);
+    for _ in 0..2 {
+        edited.fill_chunk(key, &mut voxels).unwrap();
+        let local = [at.i % 32 + 1, (at.h.rem_euclid(32) + 1) as u32, at.j % 32 + 1];
+        assert_eq!(voxels.get(local), Some(Voxel::AIR));
+    }
+    // The neighbour sees it in its padding (x = 0).
+    edited.fill_chunk(layout.neighbor(key, FaceEdge::PosU), &mut voxels).unwrap();
+    assert_eq!(voxels.get([0, (at.h.rem_euclid(32) + 1) as u32, at.j % 32 + 1]), Some(Voxel::AIR));
+    // Setting it back to what the base has removes the edit entirely.
+    let base = edited.base().voxel(at).unwrap();
+    edited.set_voxel(at, base).unwrap();
+    assert_eq!(edited.edits().count(), 0);
+    assert!(edited.set_voxel(VoxelCoord { lod: 1, ..at }, Voxel::AIR).is_err());
+}
+
+#[test]
+fn a_crater_across_a_face_edge_shows_at_coarse_lods_and_replays() {
+    let mut edited = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+    let layout = *edited.layout();
+    let sphere = *layout.sphere();
+    let n = f64::from(sphere.resolution());
+    // On the edge between +X and its +V neighbour (+Z), at the surface.
+    let face = CubeFace::PosX;
+    let other_face = face.neighbor(FaceEdge::PosV).face;
+    let direction = sphere.direction(face, n / 2.0, n);
+    let top = column_top(&edited, face, 0, (n / 2.0) as u32, (n - 1.0) as u32);
+    let center = direction * sphere.layer_radius(top as f64);
+    let radius = 12.0 * sphere.layer_height();
+    let dirty = edited.fill_sphere(center, radius, Voxel::AIR).unwrap();
+    let faces: std::collections::BTreeSet<_> = dirty.iter().map(|k| k.face).collect();
+    assert!(faces.contains(&face) && faces.contains(&other_face), "{faces:?}");
+    let max_dirty_lod = dirty.iter().map(|k| k.lod).max().unwrap();
+    assert!(max_dirty_lod >= 3, "a 24-voxel crater reaches LOD 3: {max_dirty_lod}");
+    // The crater centre is air at LOD 0 and at LOD 3 on both faces.
+    for lod in [0, 3] {
+        for f in [face, other_face] {
+            let (fi, fj) = {
+                let (g, a, b) = sphere.face_coords_of(center * 0.999_99).unwrap();
+                if g == f {
+                    (a, b)
+                } else {
+                    // The point on the other face: step just across the edge.
+                    let other = sphere.face_coords_of(center + f.normal().as_dvec3() * 2.0).unwrap();
+                    (other.1, other.2)
+                }
+            };
+            let span = layout.voxel_span(lod) as f64;
+            let at = VoxelCoord {
+                face: f,
+                lod,
+                i: ((fi / span) as u32).min(layout.voxels_per_edge(lod) - 1),
+                j: ((fj / span) as u32).min(layout.voxels_per_edge(lod) - 1),
+                h: ((top as f64 - 2.0) / span).floor() as i32,
+            };
+            assert_eq!(edited.voxel(at).unwrap(), Voxel::AIR, "{at:?}");
+        }
+    }
+    // Filled chunks agree with single-voxel reads, and a replay of the saved
+    // edits on a fresh planet gives the same voxels.
+    let mut replay = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+    for (at, voxel) in edited.edits().collect::<Vec<_>>() {
+        replay.set_voxel(at, voxel).unwrap();
+    }
+    let (mut a, mut b) = (ChunkVoxels::new(dirty[0]), ChunkVoxels::new(dirty[0]));
+    for &key in &dirty {
+        edited.fill_chunk(key, &mut a).unwrap();
+        replay.fill_chunk(key, &mut b).unwrap();
+        assert_eq!(a, b, "{key:?}");
+    }
+    // Bounds include the crater floor.
+    for &key in &dirty {
+        let bounds = edited.surface_bounds(key.column()).unwrap();
+        assert!(bounds.min_layer < top - 12, "{bounds:?}");
+    }
+    assert!(edited.fill_sphere(center, f64::NAN, Voxel::AIR).is_err());
+    assert!(edited.fill_sphere(center, 1e6, Voxel::AIR).is_err());
+}
+
+fn any_face() -> impl Strategy<Value = CubeFace> {
+    (0usize..6).prop_map(|i| CubeFace::ALL[i])
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    /// Every face-adjacent padding voxel, across chunk and cube-face edges,
+    /// equals the voxel it stands for.
+    #[test]
+    fn padding_matches_the_neighbours(
+        face in any_face(), lod in 0u8..=6, xf in 0.0f64..1.0, yf in 0.0f64..1.0, edge in 0usize..4,
+        near_edge in any::<bool>(), t in 0u32..34, y in 0u32..34, depth in 0usize..2,
+    ) {
+        let planet = small();
+        let layout = planet.layout();
+        let per_edge = layout.chunks_per_edge(lod);
+        let (mut x, mut yy) = ((xf * f64::from(per_edge)) as u32, (yf * f64::from(per_edge)) as u32);
+        if near_edge { x = 0; yy = per_edge - 1; }
+        let column = ChunkColumn { face, lod, x, y: yy };
+        let layers = planet.surface_chunk_layers(column).unwrap();
+        let layer = if depth == 0 { *layers.start() } else { *layers.end() };
+        let key = column.chunk(layer);
+        let mut voxels = ChunkVoxels::new(key);
+        planet.fill_chunk(key, &mut voxels).unwrap();
+        // A padding voxel on side `edge` (padded x or z = 0 or 33), not on a
+        // padded edge line.
+        let t = t.clamp(1, 32);
+        let padded = match edge { 0 => [0, y, t], 1 => [33, y, t], 2 => [t, y, 0], _ => [t, y, 33] };
+        let ci = i64::from(key.x) * 32 + i64::from(padded[0]) - 1;
+        let cj = i64::from(key.y) * 32 + i64::from(padded[2]) - 1;
+        let (f, i, j) = face.wrap_cell(ci, cj, i64::from(layout.voxels_per_edge(lod))).unwrap();
+        let at = VoxelCoord { face: f, lod, i: i as u32, j: j as u32, h: key.layer * 32 + y as i32 - 1 };
+        prop_assert_eq!(voxels.get(padded).unwrap(), planet.voxel(at).unwrap());
+    }
+
+    /// Chunks just outside the surface layers have nothing to mesh, and the
+    /// surface of each column lies within its bounds.
+    #[test]
+    fn surface_bounds_are_conservative(face in any_face(), lod in 0u8..=6, xf in 0.0f64..1.0, yf in 0.0f64..1.0) {
+        let planet = small();
+        let layout = planet.layout();
+        let per_edge = layout.chunks_per_edge(lod);
+        let column = ChunkColumn { face, lod, x: (xf * f64::from(per_edge)) as u32, y: (yf * f64::from(per_edge)) as u32 };
+        let layers = planet.surface_chunk_layers(column).unwrap();
+        let mut voxels = ChunkVoxels::new(column.chunk(0));
+        for layer in [layers.start() - 1, layers.end() + 1] {
+            if layout.check_key(column.chunk(layer)).is_err() {
+                continue; // below the planet centre: no chunk at all
+            }
+            planet.fill_chunk(column.chunk(layer), &mut voxels).unwrap();
+            prop_assert!(voxels.has_no_surface(), "layer {} outside {:?} has surface", layer, layers);
+        }
+        let bounds = planet.surface_bounds(column).unwrap();
+        let span = layout.voxel_span(lod) as u32;
+        for (a, b) in [(0, 0), (31, 31), (16, 3), (7, 29)] {
+            let (i, j) = (column.x * 32 + a, column.y * 32 + b);
+            let top = column_top(planet, face, lod, i, j);
+            prop_assert!(top - i64::from(span) >= bounds.min_layer && top - 1 <= bounds.max_layer,
+                "top {} outside {:?}", top, bounds);
+        }
+        prop_assert!(bounds.min_radius < bounds.max_radius);
+    }
+
+    /// The same seed gives the same voxels; another seed gives other ones.
+    #[test]
+    fn generation_is_deterministic(seed in any::<u32>(), face in any_face(), lod in 2u8..=6) {
+        let a = ProceduralPlanet::new(PlanetSettings::small(seed)).unwrap();
+        let b = ProceduralPlanet::new(PlanetSettings::small(seed)).unwrap();
+        let c = ProceduralPlanet::new(PlanetSettings::small(seed.wrapping_add(1))).unwrap();
+        let column = ChunkColumn { face, lod, x: 0, y: 0 };
+        let key = column.chunk(*a.surface_chunk_layers(column).unwrap().start());
+        let (mut va, mut vb, mut vc) = (ChunkVoxels::new(key), ChunkVoxels::new(key), ChunkVoxels::new(key));
+        a.fill_chunk(key, &mut va).unwrap();
+        b.fill_chunk(key, &mut vb).unwrap();
+        c.fill_chunk(key, &mut vc).unwrap();
+        prop_assert_eq!(&va, &vb);
+        let heights: Vec<_> = (0..8).map(|k| {
+            let d = a.layout().sphere().direction(face, f64::from(k) * 97.0, 300.0);
+            (a.height_at(d), c.height_at(d))
+        }).collect();
+        prop_assert!(heights.iter().any(|(x, y)| x != y));
+    }
+}

@@ -1,0 +1,41 @@
+//! Voxels: air or one of 255 opaque materials.
+
+/// One voxel: air (0) or an opaque material (1–255).
+///
+/// One byte, so a padded 34³ chunk is 39 KB.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[repr(transparent)]
+pub struct Voxel(u8);
+
+impl Voxel {
+    /// Empty space.
+    pub const AIR: Voxel = Voxel(0);
+    /// Bedrock and mountain cores.
+    pub const STONE: Voxel = Voxel(1);
+    /// A few voxels under the surface.
+    pub const DIRT: Voxel = Voxel(2);
+    /// The top voxel of lowland columns.
+    pub const GRASS: Voxel = Voxel(3);
+    /// The top voxel near height 0 and in hollows below it.
+    pub const SAND: Voxel = Voxel(4);
+    /// The top voxel of high columns.
+    pub const SNOW: Voxel = Voxel(5);
+
+    /// The voxel with material id `material` (0 is air).
+    #[must_use]
+    pub const fn from_material(material: u8) -> Voxel {
+        Voxel(material)
+    }
+
+    /// The material id (0 for air).
+    #[must_use]
+    pub const fn material(self) -> u8 {
+        self.0
+    }
+
+    /// Whether this voxel is opaque matter.
+    #[must_use]
+    pub const fn is_solid(self) -> bool {
+        self.0 != 0
+    }
+}
