@@ -32,6 +32,43 @@
 //! face that touches it; that is what makes positions bit-identical across
 //! faces (see [`crate::Cubesphere::position`]).
 //!
+//! # Edges
+//!
+//! [`CubeFace::neighbor`] gives, for each face and edge, the face across it
+//! and which of *its* edges is shared (`cargo run -p nebula_math --example
+//! adjacency` prints this table from the code):
+//!
+//! | face | NegU (i = 0) | PosU (i = N) | NegV (j = 0) | PosV (j = N) |
+//! |---|---|---|---|---|
+//! | PosX | NegY PosU | PosY PosV | NegZ PosV | PosZ PosU |
+//! | NegX | NegZ NegV | PosZ NegU | NegY NegU | PosY NegV |
+//! | PosY | NegZ PosU | PosZ PosV | NegX PosV | PosX PosU |
+//! | NegY | NegX NegV | PosX NegU | NegZ NegU | PosZ NegV |
+//! | PosZ | NegX PosU | PosX PosV | NegY PosV | PosY PosU |
+//! | NegZ | NegY NegV | PosY NegU | NegX NegU | PosX NegV |
+//!
+//! With these cyclic frames no edge is glued with a flip: the coordinate
+//! along a shared edge runs the same way on both faces
+//! ([`EdgeNeighbor::reversed`] is false for all 24), though `u` on one side
+//! may be `v` on the other. Off the face, [`CubeFace::wrap_point`] and
+//! [`CubeFace::wrap_cell`] fold coordinates over an edge exactly, in
+//! integers: `d` steps past an edge are `d` steps into the neighbour.
+//!
+//! ```text
+//!   unfolded around +Z (u → right, v → up on +Z):
+//!
+//!                 ┌──────┐
+//!                 │  +Y  │
+//!          ┌──────┼──────┼──────┐
+//!          │  −X  │  +Z  │  +X  │      +Z's NegU edge is −X's PosU edge,
+//!          └──────┼──────┼──────┘      +Z's PosV edge is +Y's PosU edge, …
+//!                 │  −Y  │
+//!                 └──────┘
+//! ```
+//!
+//! Three faces meet at each of the eight [`CubeCorner`]s; there the fold is
+//! undefined (`None`), since no fourth cell exists.
+//!
 //! Chunk-local voxel axes (used by `nebula_voxel` and `nebula_meshing`) are
 //! `x = u`, `y = radial (outward)`, `z = v`. Because `u × n = −v`, that frame is
 //! **left-handed** in world space: a triangle wound counter-clockwise in chunk

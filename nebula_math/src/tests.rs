@@ -33,6 +33,9 @@ fn edge_adjacency_is_symmetric_and_covers_24_pairings() {
         }
     }
     assert_eq!(pairs.len(), 24);
+    // Nebula's cyclic frames glue every edge without a flip (documented in
+    // `face`): the along-edge coordinate is preserved.
+    assert!(CubeFace::ALL.iter().all(|f| FaceEdge::ALL.iter().all(|&e| !f.neighbor(e).reversed)));
 }
 
 #[test]
