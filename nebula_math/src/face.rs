@@ -369,3 +369,90 @@ fn unit(axis: usize) -> I64Vec3 {
     v[axis] = 1;
     v
 }
+
+/// A side of a chunk in chunk-local axes (`x = u`, `y = radial`, `z = v`; see
+/// the module docs). The discriminants follow the seam spec's neighbour
+/// order: +X, −X, +Z, −Z, +Y, −Y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum FaceDirection {
+    /// +x = +u: the chunk side towards growing `i`.
+    PosX = 0,
+    /// −x = −u.
+    NegX = 1,
+    /// +z = +v: the chunk side towards growing `j`.
+    PosZ = 2,
+    /// −z = −v.
+    NegZ = 3,
+    /// +y: radially outward.
+    PosY = 4,
+    /// −y: radially inward.
+    NegY = 5,
+}
+
+impl FaceDirection {
+    /// All six, in discriminant order.
+    pub const ALL: [FaceDirection; 6] = [
+        FaceDirection::PosX,
+        FaceDirection::NegX,
+        FaceDirection::PosZ,
+        FaceDirection::NegZ,
+        FaceDirection::PosY,
+        FaceDirection::NegY,
+    ];
+
+    /// The four horizontal sides (those that can meet another LOD).
+    pub const HORIZONTAL: [FaceDirection; 4] =
+        [FaceDirection::PosX, FaceDirection::NegX, FaceDirection::PosZ, FaceDirection::NegZ];
+
+    /// The chunk-local axis (0 = x, 1 = y, 2 = z) this side is perpendicular to.
+    #[must_use]
+    pub const fn axis(self) -> usize {
+        match self {
+            FaceDirection::PosX | FaceDirection::NegX => 0,
+            FaceDirection::PosY | FaceDirection::NegY => 1,
+            FaceDirection::PosZ | FaceDirection::NegZ => 2,
+        }
+    }
+
+    /// Whether the side faces the positive end of its axis.
+    #[must_use]
+    pub const fn is_positive(self) -> bool {
+        matches!(self, FaceDirection::PosX | FaceDirection::PosY | FaceDirection::PosZ)
+    }
+
+    /// The opposite side.
+    #[must_use]
+    pub const fn opposite(self) -> FaceDirection {
+        match self {
+            FaceDirection::PosX => FaceDirection::NegX,
+            FaceDirection::NegX => FaceDirection::PosX,
+            FaceDirection::PosZ => FaceDirection::NegZ,
+            FaceDirection::NegZ => FaceDirection::PosZ,
+            FaceDirection::PosY => FaceDirection::NegY,
+            FaceDirection::NegY => FaceDirection::PosY,
+        }
+    }
+
+    /// The face edge a horizontal side lies on, or `None` for ±y.
+    #[must_use]
+    pub const fn face_edge(self) -> Option<FaceEdge> {
+        match self {
+            FaceDirection::PosX => Some(FaceEdge::PosU),
+            FaceDirection::NegX => Some(FaceEdge::NegU),
+            FaceDirection::PosZ => Some(FaceEdge::PosV),
+            FaceDirection::NegZ => Some(FaceEdge::NegV),
+            FaceDirection::PosY | FaceDirection::NegY => None,
+        }
+    }
+
+    /// The horizontal side that lies on face edge `edge`.
+    #[must_use]
+    pub const fn from_face_edge(edge: FaceEdge) -> FaceDirection {
+        match edge {
+            FaceEdge::PosU => FaceDirection::PosX,
+            FaceEdge::NegU => FaceDirection::NegX,
+            FaceEdge::PosV => FaceDirection::PosZ,
+            FaceEdge::NegV => FaceDirection::NegZ,
+        }
+    }
+}

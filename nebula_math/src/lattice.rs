@@ -137,9 +137,43 @@ impl Cubesphere {
     /// that shares a point gets the bit-identical result.
     #[must_use]
     pub fn position(&self, point: LatticePoint) -> DVec3 {
+        self.position_on_column(self.column_direction(point), point.layer)
+    }
+
+    /// The unit direction of the radial column through `point` (the same
+    /// for every layer). With [`Cubesphere::position_on_column`] it splits
+    /// [`Cubesphere::position`] so a mesher can compute each column's
+    /// direction once; the two calls do exactly the arithmetic of
+    /// `position`, so the result is bit-identical.
+    #[must_use]
+    pub fn column_direction(&self, point: LatticePoint) -> DVec3 {
         let half = f64::from(self.resolution / 2);
-        let t = point.cube.as_dvec3() / half;
-        self.map.direction(t) * self.layer_radius(f64::from(point.layer))
+        self.map.direction(point.cube.as_dvec3() / half)
+    }
+
+    /// The position at radial layer `layer` on the column with unit
+    /// direction `direction` (from [`Cubesphere::column_direction`]).
+    #[must_use]
+    pub fn position_on_column(&self, direction: DVec3, layer: i32) -> DVec3 {
+        direction * self.layer_radius(f64::from(layer))
+    }
+
+    /// Unit normal of the plane through the planet centre that holds every
+    /// lattice point with in-face coordinate `coord` along `axis` (`u` when
+    /// `along_u`, else `v`) on `face`, pointing towards growing `coord`.
+    ///
+    /// Both maps warp each cube coordinate separately, so a lattice line of
+    /// constant `i` is a great circle and the side walls of voxels are flat
+    /// pieces of these planes: this is their exact normal.
+    #[must_use]
+    pub fn lattice_plane_normal(&self, face: CubeFace, along_u: bool, coord: i64) -> DVec3 {
+        let half = f64::from(self.resolution / 2);
+        let t = (coord as f64 - half) / half;
+        let warped = self.map.direction(DVec3::new(t, 0.0, 1.0));
+        // `warped` is (w, 0, 1) normalised: the plane is p·axis = w·(p·n).
+        let w = warped.x / warped.z;
+        let axis = if along_u { face.u_axis() } else { face.v_axis() }.as_dvec3();
+        (axis - face.normal().as_dvec3() * w).normalize()
     }
 
     /// Unit direction from the centre through in-face coordinates `(i, j)`

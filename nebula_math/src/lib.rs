@@ -49,7 +49,7 @@ mod sphere_map;
 mod sse;
 
 pub use error::MathError;
-pub use face::{CubeCorner, CubeFace, EdgeNeighbor, FaceEdge};
+pub use face::{CubeCorner, CubeFace, EdgeNeighbor, FaceDirection, FaceEdge};
 pub use glam::{DVec3, I64Vec3, IVec3, Vec3};
 pub use lattice::{Cubesphere, LatticePoint, MAX_RESOLUTION, relative_position};
 pub use sphere_map::{SphereMap, area_distortion};

@@ -269,3 +269,43 @@ proptest! {
         prop_assert!((exact - sampled).length() < 1e-12);
     }
 }
+
+#[test]
+fn side_walls_lie_in_their_lattice_planes() {
+    let p = planet(256);
+    for face in CubeFace::ALL {
+        for coord in [0, 1, 77, 128, 255, 256] {
+            for along_u in [true, false] {
+                let normal = p.lattice_plane_normal(face, along_u, coord);
+                let (a, b) = if along_u { ((coord, 3), (coord, 250)) } else { ((3, coord), (250, coord)) };
+                for (i, j) in [a, b] {
+                    for layer in [-3, 0, 40] {
+                        let world = p.position(p.lattice_point(face, i, j, layer).unwrap());
+                        assert!(normal.dot(world).abs() < 1e-6 * world.length(), "{face:?} {coord}");
+                    }
+                }
+                // Points towards growing coord.
+                let (c, d) = if along_u {
+                    ((coord.min(255), 9), (coord.min(255) + 1, 9))
+                } else {
+                    ((9, coord.min(255)), (9, coord.min(255) + 1))
+                };
+                let step = p.position(p.lattice_point(face, d.0, d.1, 0).unwrap())
+                    - p.position(p.lattice_point(face, c.0, c.1, 0).unwrap());
+                assert!(normal.dot(step) > 0.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn face_directions_map_to_face_edges() {
+    for dir in FaceDirection::HORIZONTAL {
+        let edge = dir.face_edge().unwrap();
+        assert_eq!(FaceDirection::from_face_edge(edge), dir);
+        assert_eq!(dir.opposite().face_edge(), Some(edge.opposite()));
+        assert_ne!(dir.axis(), 1);
+    }
+    assert_eq!(FaceDirection::PosY.face_edge(), None);
+    assert!(FaceDirection::ALL.iter().enumerate().all(|(i, d)| *d as usize == i));
+}

@@ -39,3 +39,20 @@ impl Voxel {
         self.0 != 0
     }
 }
+
+#[cfg(feature = "block-mesh")]
+impl block_mesh::Voxel for Voxel {
+    fn get_visibility(&self) -> block_mesh::VoxelVisibility {
+        if self.is_solid() { block_mesh::VoxelVisibility::Opaque } else { block_mesh::VoxelVisibility::Empty }
+    }
+}
+
+#[cfg(feature = "block-mesh")]
+impl block_mesh::MergeVoxel for Voxel {
+    type MergeValue = u8;
+
+    /// Greedy quads merge voxels of one material only.
+    fn merge_value(&self) -> u8 {
+        self.0
+    }
+}

@@ -1,0 +1,166 @@
+//! Meshing speed and output size against block-mesh alone, in one run.
+//!
+//! For the same padded chunks (a surface chunk of the Earth-sized planet at
+//! LOD 0 and at LOD 5, and a worst case of random 50 % voxels):
+//! - `greedy_quads`: block-mesh's greedy meshing alone (the baseline);
+//! - `surface`: greedy quads → T-junction-free triangles on the sphere;
+//! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
+//!   and a skirt there) from the already generated voxels.
+//!
+//! Each id names its output: quads for block-mesh, triangles for ours, with
+//! `visible_block_faces` (no merging) for scale. Then 64 chunks sequentially
+//! vs. `mesh_chunks` on rayon. Run: `cargo bench -p nebula_meshing`.
+
+use std::collections::HashMap;
+
+use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, UnitQuadBuffer, greedy_quads, visible_block_faces};
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use nebula_meshing::{
+    ChunkLodContext, ChunkMeshBuffer, ChunkMesher, FaceDirection, MeshOptions, NeighborLodRelation, mesh_chunk,
+    mesh_chunks,
+};
+use nebula_voxel::{
+    ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, CubeFace, PADDED_CHUNK_VOLUME, PaddedChunkShape, PlanetSettings,
+    ProceduralPlanet, SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
+};
+
+/// Serves chunks generated beforehand, so the benches time meshing, not
+/// noise.
+struct Prepared<'a> {
+    planet: &'a ProceduralPlanet,
+    chunks: HashMap<ChunkKey, ChunkVoxels>,
+}
+
+impl VoxelSource for Prepared<'_> {
+    fn layout(&self) -> &ChunkLayout {
+        self.planet.layout()
+    }
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
+        self.planet.voxel(at)
+    }
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
+        match self.chunks.get(&key) {
+            Some(voxels) => {
+                out.as_mut_slice().copy_from_slice(voxels.as_slice());
+                out.set_key(key);
+                Ok(())
+            }
+            None => self.planet.fill_chunk(key, out),
+        }
+    }
+    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+        self.planet.surface_bounds(column)
+    }
+    fn geometric_error(&self, lod: u8) -> f64 {
+        self.planet.geometric_error(lod)
+    }
+}
+
+/// The surface chunk of a column with the most solid voxels' faces.
+fn surface_chunk(planet: &ProceduralPlanet, column: ChunkColumn) -> ChunkVoxels {
+    let mut best = ChunkVoxels::new(column.chunk(0));
+    let mut best_faces = 0;
+    let mut quads = UnitQuadBuffer::new();
+    for layer in planet.surface_chunk_layers(column).expect("on the planet") {
+        let mut voxels = ChunkVoxels::new(column.chunk(layer));
+        planet.fill_chunk(column.chunk(layer), &mut voxels).expect("valid key");
+        visible_block_faces(
+            voxels.as_slice(),
+            &PaddedChunkShape {},
+            [0; 3],
+            [33; 3],
+            &RIGHT_HANDED_Y_UP_CONFIG.faces,
+            &mut quads,
+        );
+        if quads.num_quads() > best_faces {
+            best_faces = quads.num_quads();
+            best = voxels;
+        }
+    }
+    best
+}
+
+fn noisy_chunk(key: ChunkKey) -> ChunkVoxels {
+    let mut state = 0x2545_F491_4F6C_DD1D_u64;
+    let voxels = (0..PADDED_CHUNK_VOLUME)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            if state.is_multiple_of(2) { Voxel::STONE } else { Voxel::AIR }
+        })
+        .collect();
+    ChunkVoxels::from_voxels(key, voxels).expect("right size")
+}
+
+fn meshing(c: &mut Criterion) {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(1)).expect("valid planet");
+    let cases = [
+        ("terrain_lod0", surface_chunk(&planet, ChunkColumn { face: CubeFace::PosZ, lod: 0, x: 100_000, y: 70_001 })),
+        ("terrain_lod5", surface_chunk(&planet, ChunkColumn { face: CubeFace::NegY, lod: 5, x: 3_000, y: 4_100 })),
+        ("noise50", noisy_chunk(ChunkKey { face: CubeFace::PosX, lod: 0, x: 9, y: 9, layer: 0 })),
+    ];
+    let source = Prepared { planet: &planet, chunks: cases.iter().map(|(_, v)| (v.key(), v.clone())).collect() };
+    let mut group = c.benchmark_group("chunk");
+    for (name, voxels) in &cases {
+        let key = voxels.key();
+        let mut greedy = GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME);
+        let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
+        greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut greedy);
+        let quads = greedy.quads.num_quads();
+        let mut unit = UnitQuadBuffer::new();
+        visible_block_faces(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut unit);
+        let unit_tris = 2 * unit.num_quads();
+        let mut mesher = ChunkMesher::new();
+        let surface_tris = mesher.mesh(voxels, planet.layout()).expect("valid chunk").triangle_count();
+        let mut context = ChunkLodContext::uniform(key.lod);
+        context.set(FaceDirection::PosX, NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 });
+        let mut buffer = ChunkMeshBuffer::new();
+        let full = mesh_chunk(&source, key, &context, MeshOptions::default(), &mut buffer).expect("valid chunk");
+        eprintln!(
+            "{name}: greedy quads {quads} (= {} tris), ours {surface_tris} surface + {} skirt tris, \
+             visible_block_faces {unit_tris} tris; T-junction repair +{} tris",
+            2 * quads,
+            full.skirt_triangle_count(),
+            surface_tris as i64 - 2 * quads as i64
+        );
+        group.bench_function(BenchmarkId::new(format!("{name}/greedy_quads"), format!("quads={quads}")), |b| {
+            b.iter(|| greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut greedy));
+        });
+        group.bench_function(BenchmarkId::new(format!("{name}/surface"), format!("tris={surface_tris}")), |b| {
+            b.iter(|| mesher.mesh(voxels, planet.layout()).expect("valid chunk"));
+        });
+        let tris = full.triangle_count();
+        group.bench_function(BenchmarkId::new(format!("{name}/pipeline"), format!("tris={tris}")), |b| {
+            b.iter(|| mesh_chunk(&source, key, &context, MeshOptions::default(), &mut buffer).expect("valid chunk"));
+        });
+    }
+    group.finish();
+
+    // 64 LOD-2 surface chunks, voxels prepared.
+    let mut many = Prepared { planet: &planet, chunks: HashMap::new() };
+    let jobs: Vec<(ChunkKey, ChunkLodContext)> = (0..64)
+        .map(|n| {
+            let voxels =
+                surface_chunk(&planet, ChunkColumn { face: CubeFace::PosX, lod: 2, x: 500 + n % 8, y: 900 + n / 8 });
+            let key = voxels.key();
+            many.chunks.insert(key, voxels);
+            (key, ChunkLodContext::uniform(2))
+        })
+        .collect();
+    let mut group = c.benchmark_group("many_chunks");
+    group.sample_size(20);
+    group.bench_function("sequential_64", |b| {
+        let mut buffer = ChunkMeshBuffer::new();
+        b.iter(|| {
+            for (key, context) in &jobs {
+                mesh_chunk(&many, *key, context, MeshOptions::default(), &mut buffer).expect("valid chunk");
+            }
+        });
+    });
+    group.bench_function("rayon_64", |b| b.iter(|| mesh_chunks(&many, &jobs, MeshOptions::default())));
+    group.finish();
+}
+
+criterion_group!(benches, meshing);
+criterion_main!(benches);

@@ -1,0 +1,388 @@
+//! The finished mesh of one chunk and the queries the seam code and tests use.
+
+use std::collections::{HashMap, HashSet};
+
+use nebula_math::{DVec3, FaceDirection, LatticePoint, Vec3, relative_position};
+use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout};
+
+/// One vertex as uploaded to the GPU: 40 bytes, `#[repr(C)]`.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0–11 | `position`: f32 × 3, metres from the chunk's origin |
+/// | 12–23 | `normal`: f32 × 3, unit |
+/// | 24–35 | `morph_target`: f32 × 3, where the vertex goes as it morphs towards the coarser LOD |
+/// | 36–37 | `material`: u16 voxel material id |
+/// | 38–39 | `flags`: u16, [`MeshVertex::SKIRT`] / [`MeshVertex::CONSTRAINED`] |
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct MeshVertex {
+    /// Position relative to the mesh origin ([`ChunkMesh::origin`]).
+    pub position: Vec3,
+    /// Unit normal. Skirt vertices carry the normal of the surface vertex
+    /// they hang from (normal locking).
+    pub normal: Vec3,
+    /// Geomorph target relative to the mesh origin: the vertex snapped to
+    /// the parent LOD's lattice (even local coordinates). Constrained and
+    /// skirt-top vertices keep their position, so seams stay closed while
+    /// morphing.
+    pub morph_target: Vec3,
+    /// Voxel material id of the face.
+    pub material: u16,
+    /// Bit set of [`MeshVertex::SKIRT`] and [`MeshVertex::CONSTRAINED`].
+    pub flags: u16,
+}
+
+impl MeshVertex {
+    /// The vertex is the lower end of a skirt.
+    pub const SKIRT: u16 = 1;
+    /// The vertex was moved onto a coarser neighbour's edge.
+    pub const CONSTRAINED: u16 = 2;
+}
+
+/// Where a vertex came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum VertexSource {
+    /// A lattice point of the chunk (local coordinates at the chunk's LOD,
+    /// each in `0..=32`) on a face looking towards `side`.
+    Surface { local: [i32; 3], side: FaceDirection },
+    /// The lower end of a skirt hanging from vertex `top`.
+    Skirt { top: u32 },
+    /// Added by [`ChunkMesh::push_triangle`].
+    Loose,
+}
+
+/// The mesh of one chunk: vertices relative to an f64 origin, u32 indices,
+/// surface triangles first, then skirts and pushed triangles.
+#[derive(Clone, Debug)]
+pub struct ChunkMesh {
+    pub(crate) key: ChunkKey,
+    pub(crate) layout: ChunkLayout,
+    pub(crate) origin: DVec3,
+    pub(crate) vertices: Vec<MeshVertex>,
+    /// f64 world position of each vertex: the truth `position` is cast from.
+    pub(crate) world: Vec<DVec3>,
+    /// f64 world position of each morph target.
+    pub(crate) morph_world: Vec<DVec3>,
+    pub(crate) sources: Vec<VertexSource>,
+    pub(crate) indices: Vec<u32>,
+    /// `indices[..surface_index_count]` are the surface triangles.
+    pub(crate) surface_index_count: usize,
+    pub(crate) skirt_triangles: usize,
+}
+
+impl ChunkMesh {
+    /// An empty mesh for `key`, with the chunk's origin.
+    pub(crate) fn empty(key: ChunkKey, layout: ChunkLayout, origin: DVec3) -> Self {
+        Self {
+            key,
+            layout,
+            origin,
+            vertices: Vec::new(),
+            world: Vec::new(),
+            morph_world: Vec::new(),
+            sources: Vec::new(),
+            indices: Vec::new(),
+            surface_index_count: 0,
+            skirt_triangles: 0,
+        }
+    }
+
+    /// The chunk this mesh belongs to.
+    #[must_use]
+    pub fn key(&self) -> ChunkKey {
+        self.key
+    }
+
+    /// The f64 world position vertices are relative to (the chunk's lattice
+    /// corner unless [`ChunkMesh::rebase`]d).
+    #[must_use]
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+
+    /// The planet centre in this mesh's frame (`−origin`), for
+    /// [`generate_skirt`](crate::generate_skirt).
+    #[must_use]
+    pub fn planet_center(&self) -> Vec3 {
+        relative_position(DVec3::ZERO, self.origin)
+    }
+
+    /// Number of vertices.
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// All vertices.
+    #[must_use]
+    pub fn vertices(&self) -> &[MeshVertex] {
+        &self.vertices
+    }
+
+    /// Triangle list indices into [`ChunkMesh::vertices`].
+    #[must_use]
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
+    /// All triangles.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Triangles of the voxel surface (no skirts, nothing pushed).
+    #[must_use]
+    pub fn surface_triangle_count(&self) -> usize {
+        self.surface_index_count / 3
+    }
+
+    /// Triangles added by [`generate_skirt`](crate::generate_skirt).
+    #[must_use]
+    pub fn skirt_triangle_count(&self) -> usize {
+        self.skirt_triangles
+    }
+
+    /// Whether the mesh has no triangles.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.indices.is_empty()
+    }
+
+    /// The f64 world position of vertex `index`.
+    #[must_use]
+    pub fn world_position(&self, index: usize) -> Option<DVec3> {
+        self.world.get(index).copied()
+    }
+
+    /// The canonical lattice point of vertex `index`, for surface vertices
+    /// (what two chunks compare to find shared vertices).
+    #[must_use]
+    pub fn lattice_point(&self, index: usize) -> Option<LatticePoint> {
+        match self.sources.get(index)? {
+            VertexSource::Surface { local, .. } => self.layout.lattice_point(self.key, local.map(i64::from)).ok(),
+            _ => None,
+        }
+    }
+
+    /// Whether vertex `index` was moved onto a coarser neighbour's edge.
+    #[must_use]
+    pub fn is_constrained(&self, index: usize) -> bool {
+        self.vertices.get(index).is_some_and(|v| v.flags & MeshVertex::CONSTRAINED != 0)
+    }
+
+    /// Re-expresses every vertex relative to `origin` (e.g. a common origin
+    /// for comparing two chunks, or the planet centre). Positions are cast
+    /// from the f64 truth again, so no error accumulates.
+    pub fn rebase(&mut self, origin: DVec3) {
+        self.origin = origin;
+        for ((vertex, world), morph) in self.vertices.iter_mut().zip(&self.world).zip(&self.morph_world) {
+            vertex.position = relative_position(*world, origin);
+            vertex.morph_target = relative_position(*morph, origin);
+        }
+    }
+
+    /// Appends a triangle by positions (relative to the mesh origin) as three
+    /// new vertices with the triangle's flat normal, wound as given.
+    pub fn push_triangle(&mut self, a: Vec3, b: Vec3, c: Vec3) {
+        let normal = (b - a).cross(c - a).normalize_or_zero();
+        for position in [a, b, c] {
+            let world = self.origin + position.as_dvec3();
+            self.push_vertex(world, world, normal, 0, 0, VertexSource::Loose);
+        }
+        let first = (self.vertices.len() - 3) as u32;
+        self.indices.extend([first, first + 1, first + 2]);
+    }
+
+    pub(crate) fn push_vertex(
+        &mut self,
+        world: DVec3,
+        morph_world: DVec3,
+        normal: Vec3,
+        material: u16,
+        flags: u16,
+        source: VertexSource,
+    ) -> u32 {
+        let index = self.vertices.len() as u32;
+        self.vertices.push(MeshVertex {
+            position: relative_position(world, self.origin),
+            normal,
+            morph_target: relative_position(morph_world, self.origin),
+            material,
+            flags,
+        });
+        self.world.push(world);
+        self.morph_world.push(morph_world);
+        self.sources.push(source);
+        index
+    }
+
+    /// Moves vertex `index` to `world` (f64), keeping its morph target on it.
+    pub(crate) fn move_vertex(&mut self, index: usize, world: DVec3) {
+        self.world[index] = world;
+        self.morph_world[index] = world;
+        self.vertices[index].position = relative_position(world, self.origin);
+        self.vertices[index].morph_target = self.vertices[index].position;
+        self.vertices[index].flags |= MeshVertex::CONSTRAINED;
+    }
+
+    /// Local lattice coordinates of surface vertex `index`.
+    pub(crate) fn local(&self, index: usize) -> Option<[i32; 3]> {
+        match self.sources[index] {
+            VertexSource::Surface { local, .. } => Some(local),
+            _ => None,
+        }
+    }
+
+    /// Indices of the surface vertices on `side`'s boundary plane.
+    pub(crate) fn boundary_indices(&self, side: FaceDirection) -> Vec<usize> {
+        let plane = side_plane(side);
+        (0..self.vertices.len()).filter(|&i| self.local(i).is_some_and(|l| l[side.axis()] == plane)).collect()
+    }
+
+    /// All surface vertices on the chunk's boundary plane on `side`
+    /// (`x = 32` for +X, …), in no particular order.
+    #[must_use]
+    pub fn boundary_vertices(&self, side: FaceDirection) -> Vec<MeshVertex> {
+        self.boundary_indices(side).into_iter().map(|i| self.vertices[i]).collect()
+    }
+
+    /// The directed surface edges on `side`'s boundary plane that only one
+    /// surface triangle uses: where the surface leaves the chunk, and where
+    /// a neighbour's surface (or a crack) begins. Radial edges are left out:
+    /// a skirt hanging from one would have no area.
+    pub(crate) fn outline_edges(&self, side: FaceDirection) -> Vec<(u32, u32)> {
+        let plane = side_plane(side);
+        let axis = side.axis();
+        // Undirected lattice edge → (triangles using it, first directed edge).
+        let mut uses: HashMap<LatticeEdge, (u32, (u32, u32))> = HashMap::new();
+        for triangle in self.indices[..self.surface_index_count].chunks_exact(3) {
+            for k in 0..3 {
+                let (a, b) = (triangle[k], triangle[(k + 1) % 3]);
+                let (Some(la), Some(lb)) = (self.local(a as usize), self.local(b as usize)) else { continue };
+                if la[axis] != plane || lb[axis] != plane {
+                    continue;
+                }
+                let key = if la < lb { (la, lb) } else { (lb, la) };
+                uses.entry(key).or_insert((0, (a, b))).0 += 1;
+            }
+        }
+        let mut edges: Vec<_> = uses
+            .into_iter()
+            .filter(|&((la, lb), (count, _))| count == 1 && !(la[0] == lb[0] && la[2] == lb[2]))
+            .map(|(key, (_, edge))| (key, edge))
+            .collect();
+        edges.sort_unstable_by_key(|&(key, _)| key);
+        edges.into_iter().map(|(_, edge)| edge).collect()
+    }
+
+    /// The vertices of the outline on `side` (see
+    /// [`ChunkMesh::outline_edges`]), walked as polylines in the order of
+    /// growing along-edge coordinate: what a neighbour's edge must meet.
+    #[must_use]
+    pub fn ordered_boundary_vertices(&self, side: FaceDirection) -> Vec<MeshVertex> {
+        self.ordered_boundary_indices(side).into_iter().map(|i| self.vertices[i]).collect()
+    }
+
+    pub(crate) fn ordered_boundary_indices(&self, side: FaceDirection) -> Vec<usize> {
+        let along = along_axis(side);
+        // Chain by lattice point: faces of different directions meeting at a
+        // point have separate vertices there.
+        let mut neighbours: HashMap<[i32; 3], Vec<[i32; 3]>> = HashMap::new();
+        let mut vertex_at: HashMap<[i32; 3], usize> = HashMap::new();
+        for (a, b) in self.outline_edges(side) {
+            let (Some(la), Some(lb)) = (self.local(a as usize), self.local(b as usize)) else { continue };
+            neighbours.entry(la).or_default().push(lb);
+            neighbours.entry(lb).or_default().push(la);
+            for (l, v) in [(la, a), (lb, b)] {
+                let slot = vertex_at.entry(l).or_insert(v as usize);
+                *slot = (*slot).min(v as usize);
+            }
+        }
+        let order_key = |l: &[i32; 3]| (l[along], l[1]);
+        let mut starts: Vec<[i32; 3]> = neighbours.keys().copied().collect();
+        // Chain ends first, then whatever is left (closed loops).
+        starts.sort_by_key(|l| (neighbours[l].len() != 1, order_key(l)));
+        let mut visited = HashSet::new();
+        let mut ordered = Vec::new();
+        for start in starts {
+            if visited.contains(&start) {
+                continue;
+            }
+            let mut chain = vec![start];
+            visited.insert(start);
+            let mut here = start;
+            while let Some(&next) =
+                neighbours[&here].iter().filter(|n| !visited.contains(*n)).min_by_key(|n| order_key(n))
+            {
+                visited.insert(next);
+                chain.push(next);
+                here = next;
+            }
+            if chain.last().map(order_key) < chain.first().map(order_key) {
+                chain.reverse();
+            }
+            ordered.push(chain);
+        }
+        ordered.sort_by_key(|chain| order_key(&chain[0]));
+        ordered.into_iter().flatten().map(|l| vertex_at[&l]).collect()
+    }
+
+    /// The position of the outline vertex on `side` whose along-edge local
+    /// coordinate is `coord`, if there is one (the first in
+    /// [`ChunkMesh::ordered_boundary_vertices`] order).
+    #[must_use]
+    pub fn vertex_at_edge_coord(&self, side: FaceDirection, coord: i32) -> Option<Vec3> {
+        let along = along_axis(side);
+        self.ordered_boundary_indices(side)
+            .into_iter()
+            .find(|&i| self.local(i).is_some_and(|l| l[along] == coord))
+            .map(|i| self.vertices[i].position)
+    }
+
+    /// Whether any vertex of a surface triangle lies strictly inside an edge
+    /// of a surface triangle, decided exactly in lattice coordinates. Skirt and pushed
+    /// vertices are not lattice points and are not considered.
+    #[must_use]
+    pub fn has_t_junctions(&self) -> bool {
+        let surface = &self.indices[..self.surface_index_count];
+        let points: HashSet<[i32; 3]> = surface.iter().filter_map(|&i| self.local(i as usize)).collect();
+        surface.chunks_exact(3).any(|triangle| {
+            (0..3).any(|k| {
+                let (a, b) = (self.local(triangle[k] as usize), self.local(triangle[(k + 1) % 3] as usize));
+                let (Some(a), Some(b)) = (a, b) else { return false };
+                lattice_points_inside(a, b).any(|p| points.contains(&p))
+            })
+        })
+    }
+}
+
+/// Two local lattice points, smaller first.
+type LatticeEdge = ([i32; 3], [i32; 3]);
+
+/// The lattice points strictly between `a` and `b`.
+pub(crate) fn lattice_points_inside(a: [i32; 3], b: [i32; 3]) -> impl Iterator<Item = [i32; 3]> {
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let steps = gcd(gcd(d[0].unsigned_abs(), d[1].unsigned_abs()), d[2].unsigned_abs()).max(1) as i32;
+    let step = d.map(|c| c / steps);
+    (1..steps).map(move |k| [a[0] + k * step[0], a[1] + k * step[1], a[2] + k * step[2]])
+}
+
+fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// The local coordinate of `side`'s boundary plane.
+pub(crate) fn side_plane(side: FaceDirection) -> i32 {
+    if side.is_positive() { CHUNK_SIZE as i32 } else { 0 }
+}
+
+/// The local axis that runs along a horizontal side (z for ±X, x for ±Z).
+pub(crate) fn along_axis(side: FaceDirection) -> usize {
+    match side.axis() {
+        0 => 2,
+        2 => 0,
+        _ => 0,
+    }
+}

@@ -1,0 +1,123 @@
+//! One call from voxels to a finished chunk mesh, and many in parallel.
+
+use nebula_lod::{ChunkLodContext, NeighborLodRelation};
+use nebula_math::FaceDirection;
+use nebula_voxel::{ChunkKey, ChunkVoxels, VoxelSource};
+use rayon::prelude::*;
+
+use crate::mesh::ChunkMesh;
+use crate::{ChunkMesher, MeshError, constrain_edge_vertices, generate_skirt, skirt_depth};
+
+/// Which seam passes run. Both are on by default; switching them off is for
+/// measuring what they fix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshOptions {
+    /// Move boundary vertices onto coarser neighbours' edges.
+    pub constrain_edges: bool,
+    /// Hang skirts on edges that meet another LOD.
+    pub skirts: bool,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self { constrain_edges: true, skirts: true }
+    }
+}
+
+/// Reusable memory for meshing chunk after chunk on one thread: the padded
+/// voxel array and the mesher's scratch.
+pub struct ChunkMeshBuffer {
+    voxels: Option<ChunkVoxels>,
+    mesher: ChunkMesher,
+}
+
+impl Default for ChunkMeshBuffer {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ChunkMeshBuffer {
+    /// Fresh buffers.
+    #[must_use]
+    pub fn new() -> Self {
+        Self { voxels: None, mesher: ChunkMesher::new() }
+    }
+
+    /// The voxels of the last chunk meshed.
+    #[must_use]
+    pub fn voxels(&self) -> Option<&ChunkVoxels> {
+        self.voxels.as_ref()
+    }
+}
+
+/// Meshes chunk `key` of `source` with its neighbours' LODs in `context`:
+/// voxels (with padding) → greedy quads → T-junction-free triangles on the
+/// sphere → edges constrained for coarser neighbours → skirts on every edge
+/// that meets another LOD.
+///
+/// # Errors
+/// [`MeshError`] for a key the source refuses, a context whose LOD is not
+/// the key's or that has a radial neighbour of another LOD, or a `lod_diff`
+/// past the planet's coarsest LOD.
+pub fn mesh_chunk<S: VoxelSource + ?Sized>(
+    source: &S,
+    key: ChunkKey,
+    context: &ChunkLodContext,
+    options: MeshOptions,
+    buffer: &mut ChunkMeshBuffer,
+) -> Result<ChunkMesh, MeshError> {
+    check_context(key, context)?;
+    let voxels = buffer.voxels.get_or_insert_with(|| ChunkVoxels::new(key));
+    source.fill_chunk(key, voxels)?;
+    let layout = source.layout();
+    let mut mesh = if voxels.has_no_surface() {
+        ChunkMesh::empty(key, *layout, layout.chunk_origin(key)?)
+    } else {
+        buffer.mesher.mesh(voxels, layout)?
+    };
+    for side in FaceDirection::HORIZONTAL {
+        if let (true, Some(lod_diff)) = (options.constrain_edges, context.coarser_neighbor_diff(side)) {
+            constrain_edge_vertices(&mut mesh, side, lod_diff)?;
+        }
+    }
+    if options.skirts {
+        for side in FaceDirection::HORIZONTAL {
+            let coarse_lod = match context.relation(side) {
+                NeighborLodRelation::Same => continue,
+                NeighborLodRelation::HigherThanNeighbor { lod_diff } => key.lod + lod_diff,
+                // The finer neighbour is at most as coarse as this chunk.
+                NeighborLodRelation::LowerThanNeighbor => key.lod,
+            };
+            let depth = skirt_depth(source, key.lod, coarse_lod) as f32;
+            let center = mesh.planet_center();
+            generate_skirt(&mut mesh, side, depth, &center)?;
+        }
+    }
+    Ok(mesh)
+}
+
+/// Meshes many chunks in parallel with rayon, one [`ChunkMeshBuffer`] per
+/// worker thread. Results come back in the order of `jobs`.
+pub fn mesh_chunks<S: VoxelSource + ?Sized>(
+    source: &S,
+    jobs: &[(ChunkKey, ChunkLodContext)],
+    options: MeshOptions,
+) -> Vec<Result<ChunkMesh, MeshError>> {
+    jobs.par_iter()
+        .map_init(ChunkMeshBuffer::new, |buffer, (key, context)| mesh_chunk(source, *key, context, options, buffer))
+        .collect()
+}
+
+fn check_context(key: ChunkKey, context: &ChunkLodContext) -> Result<(), MeshError> {
+    let mismatch = |reason: String| Err(MeshError::ContextMismatch { chunk_lod: key.lod, reason });
+    if context.lod != key.lod {
+        return mismatch(format!("context is for LOD {}", context.lod));
+    }
+    for side in [FaceDirection::PosY, FaceDirection::NegY] {
+        if context.relation(side) != NeighborLodRelation::Same {
+            return mismatch(format!("radial side {side:?} has relation {:?}", context.relation(side)));
+        }
+    }
+    Ok(())
+}

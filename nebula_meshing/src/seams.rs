@@ -1,0 +1,151 @@
+//! Closing seams between chunks of different LOD: edge constraining and
+//! radial skirts (seam spec `003`, seeds `000` and `002`).
+
+use std::collections::HashMap;
+
+use nebula_math::{DVec3, FaceDirection, Vec3};
+use nebula_voxel::{CHUNK_SIZE, VoxelSource};
+
+use crate::MeshError;
+use crate::mesh::{ChunkMesh, MeshVertex, VertexSource, along_axis};
+
+/// Constrains the edge vertices of a fine chunk to a neighbour `lod_diff`
+/// LODs coarser on `edge`.
+///
+/// The coarse neighbour has a vertex every `step = 2^lod_diff` fine lattice
+/// steps along the shared edge, and between two of them its edge is the
+/// straight chord of the sphere. Every boundary vertex of this chunk whose
+/// along-edge lattice coordinate (counted on the whole face, so steps wider
+/// than a chunk work) is not a multiple of `step` is moved onto that chord:
+/// the f64 lerp of the two canonical lattice positions at the same height,
+/// by its fraction along the segment. The lattice identity of the vertex is
+/// kept, so the chunk's own topology (and its T-junction-freedom) is
+/// unchanged.
+///
+/// # Errors
+/// [`MeshError::LodDiffOutOfRange`] for `lod_diff` 0 or past the planet's
+/// coarsest LOD, [`MeshError::RadialSide`] for ±Y.
+pub fn constrain_edge_vertices(mesh: &mut ChunkMesh, edge: FaceDirection, lod_diff: u8) -> Result<(), MeshError> {
+    let key = mesh.key;
+    let max = mesh.layout.max_lod() - key.lod;
+    if lod_diff == 0 || lod_diff > max {
+        return Err(MeshError::LodDiffOutOfRange { lod: key.lod, lod_diff, max });
+    }
+    if edge.face_edge().is_none() {
+        return Err(MeshError::RadialSide { side: edge });
+    }
+    let along = along_axis(edge);
+    let step = 1i64 << lod_diff;
+    // Along-edge coordinate of local 0, in the chunk's voxel units on the face.
+    let first = i64::from(if along == 0 { key.x } else { key.y }) * i64::from(CHUNK_SIZE);
+    let span = mesh.layout.voxel_span(key.lod);
+    let sphere = *mesh.layout.sphere();
+    for index in mesh.boundary_indices(edge) {
+        let Some(local) = mesh.local(index) else { continue };
+        let coord = first + i64::from(local[along]);
+        let lower = coord.div_euclid(step) * step;
+        if coord == lower {
+            continue;
+        }
+        // The two coarse vertices, as face lattice points at this height.
+        let at = |c: i64| -> Result<DVec3, MeshError> {
+            let mut global = [
+                i64::from(key.x) * i64::from(CHUNK_SIZE) + i64::from(local[0]),
+                i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1]),
+                i64::from(key.y) * i64::from(CHUNK_SIZE) + i64::from(local[2]),
+            ];
+            global[along] = c;
+            let point = sphere.lattice_point(key.face, global[0] * span, global[2] * span, global[1] * span)?;
+            Ok(sphere.position(point))
+        };
+        let (low, high) = (at(lower)?, at(lower + step)?);
+        let t = (coord - lower) as f64 / step as f64;
+        mesh.move_vertex(index, low + (high - low) * t);
+    }
+    Ok(())
+}
+
+/// Hangs a skirt of `skirt_depth` metres from the outline of the mesh on
+/// `edge`, radially towards `planet_center` (in the mesh's frame; see
+/// [`ChunkMesh::planet_center`]).
+///
+/// The outline is the chain of surface edges on the boundary plane that only
+/// one surface triangle uses (for a smooth surface, the row of vertices along
+/// the edge). Each outline edge gets a quad down to a copy of its two
+/// vertices moved `skirt_depth` towards the centre (in f64), wound to
+/// continue the surface and so face away from the chunk, where the crack
+/// would be seen from. The lower vertices carry the normal of the vertex
+/// above them (normal locking), so a skirt is shaded like the surface.
+///
+/// # Errors
+/// [`MeshError::BadSkirtDepth`], [`MeshError::BadPlanetCenter`],
+/// [`MeshError::RadialSide`].
+pub fn generate_skirt(
+    mesh: &mut ChunkMesh,
+    edge: FaceDirection,
+    skirt_depth: f32,
+    planet_center: &Vec3,
+) -> Result<(), MeshError> {
+    if !skirt_depth.is_finite() || skirt_depth < 0.0 {
+        return Err(MeshError::BadSkirtDepth { depth: skirt_depth });
+    }
+    if !planet_center.is_finite() {
+        return Err(MeshError::BadPlanetCenter { center: planet_center.to_array() });
+    }
+    if edge.face_edge().is_none() {
+        return Err(MeshError::RadialSide { side: edge });
+    }
+    let center = mesh.origin + planet_center.as_dvec3();
+    let depth = f64::from(skirt_depth);
+    let mut lower: HashMap<u32, u32> = HashMap::new();
+    let mut bottom_of = |mesh: &mut ChunkMesh, top: u32| -> u32 {
+        *lower.entry(top).or_insert_with(|| {
+            let t = top as usize;
+            let world = mesh.world[t];
+            let inward = (center - world).normalize_or_zero() * depth;
+            let vertex = mesh.vertices[t];
+            let morph = mesh.morph_world[t] + inward;
+            mesh.push_vertex(
+                world + inward,
+                morph,
+                vertex.normal,
+                vertex.material,
+                MeshVertex::SKIRT,
+                VertexSource::Skirt { top },
+            )
+        })
+    };
+    for (a, b) in mesh.outline_edges(edge) {
+        let (a_low, b_low) = (bottom_of(mesh, a), bottom_of(mesh, b));
+        // The surface runs a → b; the skirt continues it, so it runs b → a.
+        mesh.indices.extend([b, a, a_low, b, a_low, b_low]);
+        mesh.skirt_triangles += 2;
+    }
+    Ok(())
+}
+
+/// How deep a skirt must hang on an edge between a chunk at `fine_lod` and
+/// one at `coarse_lod`, in metres:
+///
+/// ```text
+///   depth = δ(fine) + δ(coarse) + sagitta(coarse) + bias
+///   sagitta(L) = (1.5 · 2^L · cell width)² / (8 · radius)   chord sag of one
+///                                                          coarse voxel edge
+///   bias = one voxel at the fine LOD
+/// ```
+///
+/// δ(L) bounds how far each LOD's voxel surface lies from the LOD-0 surface
+/// radially (see `nebula_voxel::ProceduralPlanet`), so the two surfaces
+/// differ by at most δ(fine) + δ(coarse) anywhere along the edge. Constrained
+/// vertices sit on coarse chords, which sag below the sphere by up to the
+/// sagitta (1.5 covers the longest equi-angular cell edge, √2 × the
+/// shortest). The bias absorbs the staircase of the voxel surface itself.
+#[must_use]
+pub fn skirt_depth<S: VoxelSource + ?Sized>(source: &S, fine_lod: u8, coarse_lod: u8) -> f64 {
+    let layout = source.layout();
+    let sphere = layout.sphere();
+    let chord = 1.5 * layout.voxel_span(coarse_lod) as f64 * sphere.cell_width();
+    let sagitta = chord * chord / (8.0 * sphere.radius());
+    let bias = layout.voxel_span(fine_lod) as f64 * sphere.layer_height();
+    source.geometric_error(fine_lod) + source.geometric_error(coarse_lod) + sagitta + bias
+}

@@ -1,0 +1,512 @@
+//! Seam spec tests (`003`) and the meshing invariants, as unit and property
+//! tests.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::OnceLock;
+
+use nebula_math::{CubeFace, DVec3, LatticePoint};
+use nebula_voxel::{
+    ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PlanetSettings, ProceduralPlanet, SurfaceBounds, Voxel,
+    VoxelCoord, VoxelError, VoxelSource,
+};
+use proptest::prelude::*;
+
+use crate::mesh::VertexSource;
+use crate::*;
+
+fn planet() -> &'static ProceduralPlanet {
+    static PLANET: OnceLock<ProceduralPlanet> = OnceLock::new();
+    PLANET.get_or_init(|| ProceduralPlanet::new(PlanetSettings::small(11)).unwrap())
+}
+
+/// A planet whose ground is flat at LOD-0 layer `ground` everywhere: with
+/// `ground` a multiple of 2^L the surface is at the same height at every LOD
+/// up to L, which makes seams between LODs exactly comparable.
+struct FlatSource {
+    layout: ChunkLayout,
+    ground: i64,
+}
+
+impl VoxelSource for FlatSource {
+    fn layout(&self) -> &ChunkLayout {
+        &self.layout
+    }
+
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
+        self.layout.check_voxel(at)?;
+        let span = self.layout.voxel_span(at.lod) as f64;
+        let centre = (f64::from(at.h) + 0.5) * span;
+        Ok(if centre < self.ground as f64 { Voxel::STONE } else { Voxel::AIR })
+    }
+
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
+        self.layout.check_key(key)?;
+        out.set_key(key);
+        for z in 0..34 {
+            for y in 0..34 {
+                for x in 0..34 {
+                    let h = key.layer * 32 + y as i32 - 1;
+                    let at = VoxelCoord { face: key.face, lod: key.lod, i: 0, j: 0, h };
+                    out.set([x, y, z], self.voxel(at)?);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn surface_bounds(&self, _column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+        let r = |layer: i64| self.layout.sphere().layer_radius(layer as f64);
+        Ok(SurfaceBounds {
+            min_layer: self.ground - 1,
+            max_layer: self.ground,
+            min_radius: r(self.ground - 1),
+            max_radius: r(self.ground + 1),
+        })
+    }
+
+    fn geometric_error(&self, _lod: u8) -> f64 {
+        0.0
+    }
+}
+
+fn flat(ground: i64) -> FlatSource {
+    FlatSource { layout: *planet().layout(), ground }
+}
+
+/// The seam spec's test mesh: a chunk at `lod` whose ground is flat half way
+/// up, on face +Y of the small planet.
+fn generate_test_mesh(lod: u8) -> ChunkMesh {
+    let span = 1i64 << lod;
+    let source = flat(16 * span);
+    let key = ChunkKey { face: CubeFace::PosY, lod, x: 3, y: 5, layer: 0 };
+    let mut buffer = ChunkMeshBuffer::new();
+    let options = MeshOptions { constrain_edges: false, skirts: false };
+    mesh_chunk(&source, key, &ChunkLodContext::uniform(lod), options, &mut buffer).unwrap()
+}
+
+fn neighbor_context_with(side: FaceDirection, relation: NeighborLodRelation) -> [NeighborLodRelation; 6] {
+    let mut neighbors = [NeighborLodRelation::Same; 6];
+    neighbors[side as usize] = relation;
+    neighbors
+}
+
+/// Two adjacent chunks at the same LOD should have no seam artifacts: their
+/// boundary vertices already align, bit for bit, without constraining.
+#[test]
+fn test_same_lod_neighbors_no_seam() {
+    let source = planet();
+    let layout = source.layout();
+    let column = ChunkColumn { face: CubeFace::NegX, lod: 0, x: 20, y: 9 };
+    let layer = *source.surface_chunk_layers(column).unwrap().start() + 1;
+    let key_a = column.chunk(layer);
+    let key_b = layout.neighbor(key_a, nebula_math::FaceEdge::PosU);
+    let mut buffer = ChunkMeshBuffer::new();
+    let context = ChunkLodContext::uniform(0);
+    let mut chunk_a = mesh_chunk(source, key_a, &context, MeshOptions::default(), &mut buffer).unwrap();
+    let mut chunk_b = mesh_chunk(source, key_b, &context, MeshOptions::default(), &mut buffer).unwrap();
+    // Compare in one frame.
+    chunk_a.rebase(chunk_a.origin());
+    chunk_b.rebase(chunk_a.origin());
+
+    let boundary_a = chunk_a.ordered_boundary_vertices(FaceDirection::PosX);
+    let boundary_b = chunk_b.ordered_boundary_vertices(FaceDirection::NegX);
+    assert!(boundary_a.len() > 32, "the surface crosses the boundary: {}", boundary_a.len());
+    for va in &boundary_a {
+        let matched = boundary_b.iter().any(|vb| (va.position - vb.position).length() < f32::EPSILON);
+        assert!(matched, "vertex {:?} has no match on neighbor", va.position);
+    }
+    assert_eq!(boundary_a.len(), boundary_b.len());
+}
+
+/// A LOD 0 chunk next to a LOD 1 chunk has its boundary vertices constrained
+/// so there are no T-junctions: odd vertices sit on the segment between their
+/// even neighbours.
+#[test]
+fn test_lod_difference_of_1_handled() {
+    let mut mesh = generate_test_mesh(0);
+    let context = ChunkLodContext {
+        lod: 0,
+        neighbors: neighbor_context_with(FaceDirection::PosX, NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 }),
+    };
+    assert_eq!(context.coarser_neighbor_diff(FaceDirection::PosX), Some(1));
+    let before = mesh.ordered_boundary_vertices(FaceDirection::PosX);
+
+    constrain_edge_vertices(&mut mesh, FaceDirection::PosX, 1).unwrap();
+
+    let boundary = mesh.ordered_boundary_vertices(FaceDirection::PosX);
+    assert_eq!(boundary.len(), 33);
+    for i in (1..boundary.len()).step_by(2) {
+        let expected = boundary[i - 1].position.lerp(boundary[i + 1].position, 0.5);
+        let actual = boundary[i].position;
+        assert!(
+            (actual - expected).length() < 1e-5,
+            "vertex {i} should be interpolated: expected {expected:?}, got {actual:?}"
+        );
+        // It really moved: the sphere bulges above the coarse chord.
+        assert!((before[i].position - actual).length() > 1e-7, "vertex {i} did not move");
+    }
+}
+
+/// Skirt geometry hangs from the boundary toward the planet centre.
+#[test]
+fn test_skirt_geometry_covers_gaps() {
+    let mut mesh = generate_test_mesh(0);
+    let vert_count_before = mesh.vertex_count();
+    let center = mesh.planet_center();
+
+    generate_skirt(&mut mesh, FaceDirection::PosX, 0.5, &center).unwrap();
+
+    // Skirt should add vertices.
+    assert!(mesh.vertex_count() > vert_count_before);
+    assert_eq!(mesh.skirt_triangle_count(), 64);
+
+    // Skirt vertices extend inward from the boundary: closer to the planet
+    // centre than the surface (which is flat at one radius here).
+    let surface_radius = (mesh.vertices()[0].position - center).length();
+    let skirt_verts = &mesh.vertices()[vert_count_before..];
+    for v in skirt_verts {
+        assert!((v.position - center).length() < surface_radius + 0.01);
+        assert!(((v.position - center).length() - (surface_radius - 0.5)).abs() < 2e-3);
+        assert!(v.flags & MeshVertex::SKIRT != 0);
+    }
+}
+
+/// The final mesh has no T-junctions anywhere.
+#[test]
+fn test_no_t_junctions_in_final_mesh() {
+    let mut mesh = generate_test_mesh(0);
+    constrain_edge_vertices(&mut mesh, FaceDirection::PosX, 1).unwrap();
+
+    // No edge in the mesh has a vertex from another triangle lying on it
+    // (the definition of a T-junction).
+    assert!(!mesh.has_t_junctions(), "mesh should not contain T-junctions after constraining");
+}
+
+/// Visual continuity: normals along the boundary are smooth.
+#[test]
+fn test_visual_continuity_across_boundary() {
+    let mut mesh = generate_test_mesh(0);
+    constrain_edge_vertices(&mut mesh, FaceDirection::PosX, 1).unwrap();
+
+    let boundary = mesh.ordered_boundary_vertices(FaceDirection::PosX);
+    for window in boundary.windows(2) {
+        let dot = window[0].normal.dot(window[1].normal);
+        assert!(dot > 0.9, "adjacent boundary normals should be smooth, got dot product {dot}");
+    }
+}
+
+#[test]
+fn has_t_junctions_finds_one() {
+    // Two triangles in lattice space: the long edge (0,0,0)–(2,0,0) of the
+    // first passes through (1,0,0), a corner of the second.
+    let layout = *planet().layout();
+    let key = ChunkKey { face: CubeFace::PosZ, lod: 0, x: 1, y: 1, layer: 0 };
+    let mut mesh = ChunkMesh::empty(key, layout, layout.chunk_origin(key).unwrap());
+    let add = |mesh: &mut ChunkMesh, local: [i32; 3]| {
+        let world = layout.sphere().position(layout.lattice_point(key, local.map(i64::from)).unwrap());
+        mesh.push_vertex(world, world, Vec3::Y, 1, 0, VertexSource::Surface { local, side: FaceDirection::PosY })
+    };
+    let v = [[0, 0, 0], [2, 0, 0], [0, 0, 2], [1, 0, 0], [1, 0, -1]].map(|l| add(&mut mesh, l));
+    mesh.indices.extend([v[0], v[1], v[2]]);
+    mesh.surface_index_count = 3;
+    assert!(!mesh.has_t_junctions(), "a lone triangle has none");
+    mesh.indices.extend([v[3], v[0], v[4]]);
+    mesh.surface_index_count = 6;
+    assert!(mesh.has_t_junctions());
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let mut mesh = generate_test_mesh(2);
+    let max = planet().layout().max_lod() - 2;
+    assert_eq!(
+        constrain_edge_vertices(&mut mesh, FaceDirection::PosZ, max + 1),
+        Err(MeshError::LodDiffOutOfRange { lod: 2, lod_diff: max + 1, max })
+    );
+    assert!(matches!(
+        constrain_edge_vertices(&mut mesh, FaceDirection::NegX, 0),
+        Err(MeshError::LodDiffOutOfRange { .. })
+    ));
+    assert!(matches!(constrain_edge_vertices(&mut mesh, FaceDirection::PosY, 1), Err(MeshError::RadialSide { .. })));
+    let center = mesh.planet_center();
+    assert!(matches!(
+        generate_skirt(&mut mesh, FaceDirection::PosX, f32::NAN, &center),
+        Err(MeshError::BadSkirtDepth { .. })
+    ));
+    assert!(matches!(
+        generate_skirt(&mut mesh, FaceDirection::PosX, -1.0, &center),
+        Err(MeshError::BadSkirtDepth { .. })
+    ));
+    assert!(matches!(
+        generate_skirt(&mut mesh, FaceDirection::PosX, 1.0, &Vec3::new(f32::INFINITY, 0.0, 0.0)),
+        Err(MeshError::BadPlanetCenter { .. })
+    ));
+    let mut buffer = ChunkMeshBuffer::new();
+    let key = ChunkKey { face: CubeFace::PosX, lod: 1, x: 0, y: 0, layer: 0 };
+    let wrong_lod = ChunkLodContext::uniform(0);
+    assert!(matches!(
+        mesh_chunk(planet(), key, &wrong_lod, MeshOptions::default(), &mut buffer),
+        Err(MeshError::ContextMismatch { .. })
+    ));
+    let mut radial = ChunkLodContext::uniform(1);
+    radial.set(FaceDirection::NegY, NeighborLodRelation::LowerThanNeighbor);
+    assert!(matches!(
+        mesh_chunk(planet(), key, &radial, MeshOptions::default(), &mut buffer),
+        Err(MeshError::ContextMismatch { .. })
+    ));
+    let off_planet = ChunkKey { x: 1 << 20, ..key };
+    assert!(matches!(
+        mesh_chunk(planet(), off_planet, &ChunkLodContext::uniform(1), MeshOptions::default(), &mut buffer),
+        Err(MeshError::Voxel(VoxelError::ChunkOutOfRange { .. }))
+    ));
+    let message = MeshError::LodDiffOutOfRange { lod: 2, lod_diff: 9, max: 4 }.to_string();
+    assert!(message.contains('9') && message.contains("1..=4"), "{message}");
+}
+
+/// Directed lattice edges of the surface triangles, by canonical lattice
+/// point, with the edges on the chunk's boundary planes left out.
+fn interior_edge_balance(mesh: &ChunkMesh) -> HashMap<([i32; 3], [i32; 3]), i32> {
+    let mut balance = HashMap::new();
+    for triangle in mesh.indices()[..mesh.surface_triangle_count() * 3].chunks_exact(3) {
+        for k in 0..3 {
+            let a = mesh.local(triangle[k] as usize).unwrap();
+            let b = mesh.local(triangle[(k + 1) % 3] as usize).unwrap();
+            let on_boundary = (0..3).any(|axis| a[axis] == b[axis] && (a[axis] == 0 || a[axis] == 32));
+            if on_boundary {
+                continue;
+            }
+            let (key, sign) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+            *balance.entry(key).or_insert(0) += sign;
+        }
+    }
+    balance.retain(|_, count| *count != 0);
+    balance
+}
+
+/// The outline of `mesh` on `side` as a set of canonical lattice-point
+/// pairs, without edges on the radial boundary planes (shared with chunks
+/// above and below), with the world position of every endpoint.
+type Outline = (HashSet<[LatticePoint; 2]>, HashMap<LatticePoint, DVec3>);
+
+fn outline(mesh: &ChunkMesh, side: FaceDirection) -> Outline {
+    let mut edges = HashSet::new();
+    let mut positions = HashMap::new();
+    for (a, b) in mesh.outline_edges(side) {
+        let (la, lb) = (mesh.local(a as usize).unwrap(), mesh.local(b as usize).unwrap());
+        if (la[1] == 0 && lb[1] == 0) || (la[1] == 32 && lb[1] == 32) {
+            continue;
+        }
+        let (pa, pb) = (mesh.lattice_point(a as usize).unwrap(), mesh.lattice_point(b as usize).unwrap());
+        positions.insert(pa, mesh.world_position(a as usize).unwrap());
+        positions.insert(pb, mesh.world_position(b as usize).unwrap());
+        let mut pair = [pa, pb];
+        pair.sort_by_key(|p| (p.cube.to_array(), p.layer));
+        edges.insert(pair);
+    }
+    (edges, positions)
+}
+
+fn any_face() -> impl Strategy<Value = CubeFace> {
+    (0usize..6).prop_map(|i| CubeFace::ALL[i])
+}
+
+/// Random voxels: each solid with probability `density`, materials 1..=3.
+fn random_chunk(bits: &[u8], density: u8) -> ChunkVoxels {
+    let key = ChunkKey { face: CubeFace::NegY, lod: 0, x: 7, y: 2, layer: 0 };
+    let voxels = bits.iter().map(|&b| if b < density { Voxel::from_material(1 + b % 3) } else { Voxel::AIR }).collect();
+    ChunkVoxels::from_voxels(key, voxels).unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    /// Arbitrary voxels never panic, never leave a T-junction, and close up:
+    /// inside the chunk every directed lattice edge is matched by its
+    /// reverse (an orientable closed surface), and every triangle faces the
+    /// way its vertex normals say.
+    #[test]
+    fn arbitrary_voxels_mesh_watertight(bits in proptest::collection::vec(any::<u8>(), 34 * 34 * 34), density in 0u8..=255) {
+        let voxels = random_chunk(&bits, density);
+        let mut mesher = ChunkMesher::new();
+        let mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
+        prop_assert!(!mesh.has_t_junctions());
+        prop_assert!(interior_edge_balance(&mesh).is_empty(), "open edges inside the chunk");
+        for triangle in mesh.indices().chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.world_position(triangle[k] as usize).unwrap());
+            let facing = (b - a).cross(c - a).normalize();
+            let normal = mesh.vertices()[triangle[0] as usize].normal.as_dvec3();
+            prop_assert!(facing.dot(normal) > 0.99, "triangle faces {} but normal is {}", facing, normal);
+        }
+        // Deterministic, also with a reused mesher.
+        let again = mesher.mesh(&voxels, planet().layout()).unwrap();
+        prop_assert_eq!(mesh.vertices(), again.vertices());
+        prop_assert_eq!(mesh.indices(), again.indices());
+    }
+
+    /// Two same-LOD neighbours, also across cube-face edges and at corners,
+    /// share their boundary outline exactly, bit for bit.
+    #[test]
+    fn same_lod_neighbours_share_the_outline(
+        face in any_face(), lod in 0u8..=3, xf in 0.0f64..1.0, yf in 0.0f64..1.0, edge in 0usize..4,
+        at_face_edge in any::<bool>(), layer_pick in 0usize..3,
+    ) {
+        let source = planet();
+        let layout = source.layout();
+        let per_edge = layout.chunks_per_edge(lod);
+        let side = FaceDirection::HORIZONTAL[edge];
+        let face_edge = side.face_edge().unwrap();
+        let (mut x, mut y) = ((xf * f64::from(per_edge)) as u32, (yf * f64::from(per_edge)) as u32);
+        if at_face_edge {
+            // Put the chunk on the face edge it looks across (a corner when
+            // both coordinates are extreme).
+            match face_edge {
+                nebula_math::FaceEdge::NegU => { x = 0; }
+                nebula_math::FaceEdge::PosU => { x = per_edge - 1; }
+                nebula_math::FaceEdge::NegV => { y = 0; }
+                nebula_math::FaceEdge::PosV => { y = per_edge - 1; }
+            }
+        }
+        let column = ChunkColumn { face, lod, x, y };
+        let layers: Vec<i32> = source.surface_chunk_layers(column).unwrap().collect();
+        let key_a = column.chunk(layers[layer_pick % layers.len()]);
+        let key_b = layout.neighbor(key_a, face_edge);
+        let back = if key_b.face == face { face_edge.opposite() } else { face.neighbor(face_edge).edge };
+        let mut buffer = ChunkMeshBuffer::new();
+        let context = ChunkLodContext::uniform(lod);
+        let a = mesh_chunk(source, key_a, &context, MeshOptions::default(), &mut buffer).unwrap();
+        let b = mesh_chunk(source, key_b, &context, MeshOptions::default(), &mut buffer).unwrap();
+        let (edges_a, positions_a) = outline(&a, side);
+        let (edges_b, positions_b) = outline(&b, FaceDirection::from_face_edge(back));
+        prop_assert_eq!(&edges_a, &edges_b);
+        for (point, position) in &positions_a {
+            prop_assert_eq!(position.to_array().map(f64::to_bits), positions_b[point].to_array().map(f64::to_bits));
+        }
+        prop_assert!(!a.has_t_junctions() && !b.has_t_junctions());
+    }
+
+    /// After constraining for lod_diff 1, 2 and 3 the finer edge lies on the
+    /// coarser chunk's edge (flat ground at the same height at both LODs, so
+    /// the edges are comparable point for point); without constraining the
+    /// fine vertices float above the coarse chords.
+    #[test]
+    fn constrained_edges_lie_on_the_coarse_edge(lod_diff in 1u8..=3, xf in 0.0f64..1.0, yf in 0.0f64..1.0, face in any_face()) {
+        // Ground at 17 coarse voxels: inside coarse layer 0 and inside fine
+        // layer `ground / 32`.
+        let ground = 17i64 << lod_diff;
+        let source = flat(ground);
+        let layout = source.layout();
+        let coarse_lod = lod_diff;
+        let per_edge = layout.chunks_per_edge(coarse_lod);
+        let coarse_key = ChunkKey { face, lod: coarse_lod, x: (xf * f64::from(per_edge - 1)) as u32, y: (yf * f64::from(per_edge)) as u32, layer: 0 };
+        // The fine chunk touching the coarse one's −X side from outside,
+        // at its lowest corner.
+        let fine_key = ChunkKey { face, lod: 0, x: (coarse_key.x + 1) << lod_diff, y: coarse_key.y << lod_diff, layer: (ground / 32) as i32 };
+        let mut fine_context = ChunkLodContext::uniform(0);
+        fine_context.set(FaceDirection::NegX, NeighborLodRelation::HigherThanNeighbor { lod_diff });
+        let mut coarse_context = ChunkLodContext::uniform(coarse_lod);
+        coarse_context.set(FaceDirection::PosX, NeighborLodRelation::LowerThanNeighbor);
+        let mut buffer = ChunkMeshBuffer::new();
+        let coarse = mesh_chunk(&source, coarse_key, &coarse_context, MeshOptions::default(), &mut buffer).unwrap();
+        let segments: Vec<(DVec3, DVec3)> = coarse
+            .outline_edges(FaceDirection::PosX)
+            .into_iter()
+            .map(|(p, q)| (coarse.world_position(p as usize).unwrap(), coarse.world_position(q as usize).unwrap()))
+            .collect();
+        prop_assert!(!segments.is_empty());
+        let distance_to_coarse_edge = |p: DVec3| {
+            segments.iter().map(|&(a, b)| {
+                let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                (a + (b - a) * t).distance(p)
+            }).fold(f64::INFINITY, f64::min)
+        };
+        for (options, must_touch) in [(MeshOptions::default(), true), (MeshOptions { constrain_edges: false, skirts: false }, false)] {
+            let fine = mesh_chunk(&source, fine_key, &fine_context, options, &mut buffer).unwrap();
+            let boundary = fine.ordered_boundary_indices(FaceDirection::NegX);
+            prop_assert_eq!(boundary.len(), 33);
+            let worst = boundary
+                .into_iter()
+                .map(|i| distance_to_coarse_edge(fine.world_position(i).unwrap()))
+                .fold(0.0, f64::max);
+            if must_touch {
+                prop_assert!(worst < 1e-6, "constrained edge is {} m off the coarse edge", worst);
+            } else {
+                prop_assert!(worst > 1e-5, "unconstrained vertices should sag off the chords: {}", worst);
+            }
+        }
+    }
+
+    /// Skirts reach their depth, radially, and the depth formula covers the
+    /// real radial gap between a fine chunk's outline and a coarser
+    /// neighbour's on procedural terrain.
+    #[test]
+    fn skirts_cover_the_worst_mismatch(lod in 0u8..=2, lod_diff in 1u8..=3, xf in 0.0f64..1.0, yf in 0.0f64..1.0, face in any_face()) {
+        let source = planet();
+        let layout = source.layout();
+        let coarse_lod = lod + lod_diff;
+        let per_edge = layout.chunks_per_edge(coarse_lod);
+        let coarse_column = ChunkColumn { face, lod: coarse_lod, x: (xf * f64::from(per_edge - 1)) as u32, y: (yf * f64::from(per_edge)) as u32 };
+        let fine_column = ChunkColumn { face, lod, x: (coarse_column.x + 1) << lod_diff, y: coarse_column.y << lod_diff };
+        // The fine side's skirt is the shallower one: it alone must cover.
+        let depth = skirt_depth(source, lod, coarse_lod);
+        let mut fine_context = ChunkLodContext::uniform(lod);
+        fine_context.set(FaceDirection::NegX, NeighborLodRelation::HigherThanNeighbor { lod_diff });
+        let mut buffer = ChunkMeshBuffer::new();
+        // Radial extent of each outline at each along-edge lattice position
+        // (in LOD-0 lattice units on the face).
+        let mut extent: HashMap<i64, [(f64, f64); 2]> = HashMap::new();
+        let empty = (f64::INFINITY, f64::NEG_INFINITY);
+        for (which, column, side, context) in [
+            (0, fine_column, FaceDirection::NegX, fine_context),
+            (1, coarse_column, FaceDirection::PosX, { let mut c = ChunkLodContext::uniform(coarse_lod); c.set(FaceDirection::PosX, NeighborLodRelation::LowerThanNeighbor); c }),
+        ] {
+            let span = layout.voxel_span(column.lod);
+            let own_depth = if which == 0 { depth } else { skirt_depth(source, coarse_lod, coarse_lod) };
+            for layer in source.surface_chunk_layers(column).unwrap() {
+                let mesh = mesh_chunk(source, column.chunk(layer), &context, MeshOptions::default(), &mut buffer).unwrap();
+                let skirt_start = mesh.vertices().iter().position(|v| v.flags & MeshVertex::SKIRT != 0).unwrap_or(mesh.vertex_count());
+                for (index, vertex) in mesh.vertices().iter().enumerate().skip(skirt_start) {
+                    let VertexSource::Skirt { top } = mesh.sources[index] else { continue };
+                    let drop = mesh.world_position(top as usize).unwrap().length() - mesh.world_position(index).unwrap().length();
+                    prop_assert!((drop - own_depth).abs() < 1e-3 * own_depth.max(1.0), "skirt drops {} not {}", drop, own_depth);
+                    prop_assert!(vertex.normal == mesh.vertices()[top as usize].normal, "normal locking");
+                }
+                for i in mesh.ordered_boundary_indices(side) {
+                    let local = mesh.local(i).unwrap();
+                    let along = (i64::from(column.y) * 32 + i64::from(local[2])) * span;
+                    let radius = mesh.world_position(i).unwrap().length();
+                    let slot = &mut extent.entry(along).or_insert([empty, empty])[which];
+                    *slot = (slot.0.min(radius), slot.1.max(radius));
+                }
+            }
+        }
+        let mut compared = 0;
+        for [fine, coarse] in extent.values() {
+            if fine.0.is_finite() && coarse.0.is_finite() {
+                let gap = (fine.0 - coarse.1).max(coarse.0 - fine.1).max(0.0);
+                prop_assert!(gap <= depth, "gap {} m deeper than the skirt {} m", gap, depth);
+                compared += 1;
+            }
+        }
+        prop_assert!(compared > 0);
+    }
+}
+
+#[test]
+fn parallel_meshing_matches_sequential() {
+    let source = planet();
+    let jobs: Vec<(ChunkKey, ChunkLodContext)> = (0..8)
+        .flat_map(|n| {
+            let column = ChunkColumn { face: CubeFace::PosX, lod: 1, x: n, y: 3 };
+            let layers = source.surface_chunk_layers(column).unwrap();
+            layers.map(move |layer| (column.chunk(layer), ChunkLodContext::uniform(1)))
+        })
+        .collect();
+    let parallel = mesh_chunks(source, &jobs, MeshOptions::default());
+    let mut buffer = ChunkMeshBuffer::new();
+    for ((key, context), result) in jobs.iter().zip(parallel) {
+        let one = mesh_chunk(source, *key, context, MeshOptions::default(), &mut buffer).unwrap();
+        let many = result.unwrap();
+        assert_eq!(one.vertices(), many.vertices());
+        assert_eq!(one.indices(), many.indices());
+    }
+}
