@@ -41,9 +41,16 @@ pub struct ChunkMesher {
     vertex_slot: Vec<(u32, u32)>,
     /// Per lattice column (x, z): `(stamp, unit direction)`.
     column_direction: Vec<(u32, DVec3)>,
+    /// Per lattice point: `(stamp, world position)`.
+    point_world: Vec<(u32, DVec3)>,
+    /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
+    /// towards growing coordinate)`.
+    wall_normal: Vec<(u32, DVec3)>,
     stamp: u32,
     chain_a: Vec<[i32; 3]>,
     chain_b: Vec<[i32; 3]>,
+    index_a: Vec<u32>,
+    index_b: Vec<u32>,
 }
 
 impl Default for ChunkMesher {
@@ -61,9 +68,13 @@ impl ChunkMesher {
             corner_stamp: vec![0; POINTS * POINTS * POINTS],
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
+            point_world: vec![(0, DVec3::ZERO); POINTS * POINTS * POINTS],
+            wall_normal: vec![(0, DVec3::ZERO); 2 * POINTS],
             stamp: 0,
             chain_a: Vec::new(),
             chain_b: Vec::new(),
+            index_a: Vec::new(),
+            index_b: Vec::new(),
         }
     }
 
@@ -93,6 +104,8 @@ impl ChunkMesher {
             self.corner_stamp.fill(0);
             self.vertex_slot.fill((0, 0));
             self.column_direction.fill((0, DVec3::ZERO));
+            self.point_world.fill((0, DVec3::ZERO));
+            self.wall_normal.fill((0, DVec3::ZERO));
             self.stamp = 1;
         }
         self.stamp
@@ -111,6 +124,13 @@ impl ChunkMesher {
                 }
             }
         }
+        let quads = self.greedy.quads.num_quads();
+        // A quad has 4 corners and 2 triangles before T-junction repair.
+        mesh.vertices.reserve(4 * quads);
+        mesh.world.reserve(4 * quads);
+        mesh.morph_world.reserve(4 * quads);
+        mesh.sources.reserve(4 * quads);
+        mesh.indices.reserve(8 * quads);
         let groups = std::mem::take(&mut self.greedy.quads.groups);
         let mut result = Ok(());
         'faces: for (group, face) in groups.iter().zip(faces) {
@@ -154,49 +174,56 @@ impl ChunkMesher {
         self.walk_edge(tr, br, &mut chain_b);
         chain_b.push(br);
 
-        let mut emit = |a: [i32; 3], b: [i32; 3], c: [i32; 3], this: &mut Self| -> Result<(), MeshError> {
-            // Lattice space (x = u, y = radial, z = v) is left-handed in the
-            // world, so a triangle facing `normal` counter-clockwise in the
-            // world is clockwise here.
-            let (ab, ac) = (sub(b, a), sub(c, a));
-            let cross = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
-            let facing = cross[0] * normal[0] + cross[1] * normal[1] + cross[2] * normal[2];
-            debug_assert!(facing != 0, "flat triangle {a:?} {b:?} {c:?}");
-            let order = if facing < 0 { [a, b, c] } else { [a, c, b] };
-            for point in order {
-                let index = this.vertex(point, side, material, layout, mesh)?;
-                mesh.indices.push(index);
+        // Resolve every chain point to its vertex once.
+        let (mut index_a, mut index_b) = (std::mem::take(&mut self.index_a), std::mem::take(&mut self.index_b));
+        index_a.clear();
+        index_b.clear();
+        let mut result = Ok(());
+        for (chain, indices) in [(&chain_a, &mut index_a), (&chain_b, &mut index_b)] {
+            for &point in chain.iter() {
+                match self.vertex(point, side, material, layout, mesh) {
+                    Ok(index) => indices.push(index),
+                    Err(error) => result = Err(error),
+                }
             }
-            Ok(())
-        };
-
-        let (len_a, len_b) = (chain_a.len(), chain_b.len());
-        let total = f64::from((quad_len(bl, br) + quad_len(bl, tl)) as u32);
-        let progress = |chain: &[[i32; 3]], k: usize| -> f64 {
-            // Arc length from tl along the chain, as a fraction.
-            let mut length = 0;
-            for pair in chain[..=k].windows(2) {
-                length += quad_len(pair[0], pair[1]);
-            }
-            f64::from(length as u32) / total
-        };
-        let mut result = emit(chain_a[0], chain_a[1], chain_b[1], self);
-        let (mut i, mut j) = (1, 1);
-        while result.is_ok() && (i < len_a - 2 || j < len_b - 2) {
-            let advance_a = j == len_b - 2 || (i < len_a - 2 && progress(&chain_a, i + 1) <= progress(&chain_b, j + 1));
-            result = if advance_a {
-                i += 1;
-                emit(chain_a[i - 1], chain_a[i], chain_b[j], self)
-            } else {
-                j += 1;
-                emit(chain_a[i], chain_b[j - 1], chain_b[j], self)
-            };
         }
         if result.is_ok() {
-            result = emit(chain_a[len_a - 2], chain_a[len_a - 1], chain_b[len_b - 2], self);
+            // Lattice space (x = u, y = radial, z = v) is left-handed in the
+            // world, so a triangle facing `normal` counter-clockwise in the
+            // world is clockwise here. A step along chain A, (a, a', b), and
+            // a step along chain B, (a, b, b'), turn opposite ways, so one
+            // test per quad orients them all.
+            let (ab, ac) = (sub(chain_a[1], chain_a[0]), sub(chain_b[1], chain_a[0]));
+            let cross = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
+            let step_a_keeps_order = cross[0] * normal[0] + cross[1] * normal[1] + cross[2] * normal[2] < 0;
+            let indices = &mut mesh.indices;
+            let mut step_a = |a0: u32, a1: u32, b: u32| {
+                indices.extend(if step_a_keeps_order { [a0, a1, b] } else { [a0, b, a1] });
+            };
+            // The first triangle (tl, a1, b1) is a step along A from tl.
+            step_a(index_a[0], index_a[1], index_b[1]);
+            let (len_a, len_b) = (chain_a.len(), chain_b.len());
+            // Both chains run from tl to br, so the lattice distance from tl
+            // is arc length: advance the chain that lags.
+            let progress = |chain: &[[i32; 3]], k: usize| quad_len(chain[0], chain[k]);
+            let (mut i, mut j) = (1, 1);
+            while i < len_a - 2 || j < len_b - 2 {
+                if j == len_b - 2 || (i < len_a - 2 && progress(&chain_a, i + 1) <= progress(&chain_b, j + 1)) {
+                    i += 1;
+                    step_a(index_a[i - 1], index_a[i], index_b[j]);
+                } else {
+                    j += 1;
+                    // (a, b, b') turns the other way: reversed order.
+                    step_a(index_b[j], index_b[j - 1], index_a[i]);
+                }
+            }
+            // Last triangle (a, br, b) closes with a step along A onto br.
+            step_a(index_a[len_a - 2], index_a[len_a - 1], index_b[len_b - 2]);
         }
         self.chain_a = chain_a;
         self.chain_b = chain_b;
+        self.index_a = index_a;
+        self.index_b = index_b;
         result
     }
 
@@ -242,16 +269,26 @@ impl ChunkMesher {
         Ok(index)
     }
 
-    /// The canonical world position of local lattice point `local`, with the
-    /// column's direction computed once per chunk.
+    /// The canonical world position of local lattice point `local`: the
+    /// column's direction is computed once per chunk, each point once.
     fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> Result<DVec3, MeshError> {
-        let point = layout.lattice_point(key, local.map(i64::from))?;
-        let column = local[0] as usize * POINTS + local[2] as usize;
+        let index = point_index(local);
+        if self.point_world[index].0 == self.stamp {
+            return Ok(self.point_world[index].1);
+        }
         let sphere = layout.sphere();
+        let column = local[0] as usize * POINTS + local[2] as usize;
         if self.column_direction[column].0 != self.stamp {
+            let point = layout.lattice_point(key, [i64::from(local[0]), 0, i64::from(local[2])])?;
             self.column_direction[column] = (self.stamp, sphere.column_direction(point));
         }
-        Ok(sphere.position_on_column(self.column_direction[column].1, point.layer))
+        // The point's radial layer, exactly as `ChunkLayout::lattice_point`
+        // counts it (the chunk key is valid, so it fits).
+        let span = layout.voxel_span(key.lod);
+        let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
+        let world = sphere.position_on_column(self.column_direction[column].1, layer as i32);
+        self.point_world[index] = (self.stamp, world);
+        Ok(world)
     }
 
     /// The exact normal of a voxel face looking towards `side` at `local`:
@@ -259,24 +296,31 @@ impl ChunkMesher {
     /// through the planet centre for side walls (see
     /// `Cubesphere::lattice_plane_normal`). A function of the lattice point
     /// alone, so neighbouring chunks agree.
-    fn normal(&self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3], side: FaceDirection, world: DVec3) -> Vec3 {
-        let span = layout.voxel_span(key.lod);
-        let chunk = i64::from(CHUNK_SIZE) * span;
+    fn normal(
+        &mut self,
+        key: ChunkKey,
+        layout: &ChunkLayout,
+        local: [i32; 3],
+        side: FaceDirection,
+        world: DVec3,
+    ) -> Vec3 {
         let sign = if side.is_positive() { 1.0 } else { -1.0 };
-        let normal = match side.axis() {
-            1 => world.normalize(),
-            0 => layout.sphere().lattice_plane_normal(
-                key.face,
-                true,
-                i64::from(key.x) * chunk + i64::from(local[0]) * span,
-            ),
-            _ => layout.sphere().lattice_plane_normal(
-                key.face,
-                false,
-                i64::from(key.y) * chunk + i64::from(local[2]) * span,
-            ),
-        };
-        (normal * sign).as_vec3()
+        let axis = side.axis();
+        if axis == 1 {
+            // Radial: the column's direction (set by `world_position`).
+            let column = local[0] as usize * POINTS + local[2] as usize;
+            debug_assert!((self.column_direction[column].1 - world.normalize()).length() < 1e-9);
+            return (self.column_direction[column].1 * sign).as_vec3();
+        }
+        let slot = if axis == 0 { local[0] as usize } else { POINTS + local[2] as usize };
+        if self.wall_normal[slot].0 != self.stamp {
+            let span = layout.voxel_span(key.lod);
+            let chunk = i64::from(CHUNK_SIZE) * span;
+            let (along_u, first) = if axis == 0 { (true, key.x) } else { (false, key.y) };
+            let coord = i64::from(first) * chunk + i64::from(local[axis]) * span;
+            self.wall_normal[slot] = (self.stamp, layout.sphere().lattice_plane_normal(key.face, along_u, coord));
+        }
+        (self.wall_normal[slot].1 * sign).as_vec3()
     }
 }
 

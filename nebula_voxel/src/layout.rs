@@ -184,7 +184,7 @@ impl ChunkLayout {
     }
 
     /// Checks that `at` names a voxel of this planet: LOD and column in
-    /// range, and its chunk valid ([`ChunkLayout::check_key`]).
+    /// range and a radial index within ±2²⁹ LOD-0 layers.
     ///
     /// # Errors
     /// [`VoxelError::LodOutOfRange`] or [`VoxelError::VoxelOutOfRange`].
@@ -194,9 +194,13 @@ impl ChunkLayout {
         if at.i >= per_edge || at.j >= per_edge {
             return Err(VoxelError::VoxelOutOfRange { at, reason: format!("column not below {per_edge}") });
         }
-        // A voxel exists wherever its chunk does.
-        self.check_key(self.chunk_of(at))
-            .map_err(|_| VoxelError::VoxelOutOfRange { at, reason: "its chunk is below the planet centre".into() })
+        // Voxels below the centre exist (solid) so that every chunk's
+        // padding can be read; only the lattice range is limited.
+        let bottom = i64::from(at.h) * self.voxel_span(at.lod);
+        if bottom.abs() > i64::from(i32::MAX / 4) {
+            return Err(VoxelError::VoxelOutOfRange { at, reason: format!("radial layer {bottom} is out of range") });
+        }
+        Ok(())
     }
 
     /// The chunk that contains voxel `at` (at the voxel's LOD).

@@ -10,8 +10,13 @@
 //!   p = d · radius / feature_size
 //!   continents = fbm(p)                     (Perlin, persistence 0.45)
 //!   ridges     = (ridged_multi(2p) + 1) / 2 (mountain chains, in [0, 1])
+//!   hills      = fbm(d · radius / detail_size)   (Perlin, persistence 0.5)
 //!   H = amplitude · clamp(0.6·continents + 0.4·ridges·smoothstep(0, 0.3, continents), −1, 1)
+//!     + detail_amplitude · hills
 //! ```
+//!
+//! The hills give the metre-scale relief a player walks on; without them a
+//! planet-sized landform is flat over any one chunk.
 //!
 //! # LOD sampling rule
 //!
@@ -61,22 +66,43 @@ pub struct PlanetSettings {
     pub amplitude: f64,
     /// Wavelength of the largest landforms, metres.
     pub feature_size: f64,
+    /// Height of the small hills on top of the landforms, metres.
+    pub detail_amplitude: f64,
+    /// Wavelength of the small hills, metres.
+    pub detail_size: f64,
     /// Noise seed: equal settings and seed give identical planets.
     pub seed: u32,
 }
 
 impl PlanetSettings {
-    /// An Earth-sized planet: 6,371 km, ~1.2 m voxels, 4 km mountains.
+    /// An Earth-sized planet: 6,371 km, ~1.2 m voxels, 4 km mountains with
+    /// 40 m hills 600 m across.
     #[must_use]
     pub fn earth(seed: u32) -> Self {
-        Self { radius: 6_371_000.0, voxel_size: 1.0, amplitude: 4_000.0, feature_size: 400_000.0, seed }
+        Self {
+            radius: 6_371_000.0,
+            voxel_size: 1.0,
+            amplitude: 4_000.0,
+            feature_size: 400_000.0,
+            detail_amplitude: 40.0,
+            detail_size: 600.0,
+            seed,
+        }
     }
 
     /// A small planet for tests and demos: 2 km radius, ~1.5 m voxels
-    /// (LOD 0..=6), 120 m hills.
+    /// (LOD 0..=6), 120 m mountains with 12 m hills 150 m across.
     #[must_use]
     pub fn small(seed: u32) -> Self {
-        Self { radius: 2_000.0, voxel_size: 1.5, amplitude: 120.0, feature_size: 1_500.0, seed }
+        Self {
+            radius: 2_000.0,
+            voxel_size: 1.5,
+            amplitude: 120.0,
+            feature_size: 1_500.0,
+            detail_amplitude: 12.0,
+            detail_size: 150.0,
+            seed,
+        }
     }
 }
 
@@ -88,6 +114,9 @@ pub struct ProceduralPlanet {
     layout: ChunkLayout,
     continents: Fbm<Perlin>,
     ridges: RidgedMulti<Perlin>,
+    hills: Fbm<Perlin>,
+    /// `radius / detail_size`: unit direction → hill noise space.
+    detail_scale: f64,
     /// Metres per radial layer (= voxel size at LOD 0).
     layer_height: f64,
     /// `radius / feature_size`: unit direction → noise space.
@@ -101,8 +130,9 @@ impl ProceduralPlanet {
     ///
     /// # Errors
     /// [`VoxelError::NonFinite`] or [`VoxelError::OutOfRange`] for NaN,
-    /// infinite, zero or negative parameters, an amplitude of half the radius
-    /// or more, or a voxel size that needs more than
+    /// infinite, zero or negative parameters, an amplitude or detail
+    /// amplitude of a quarter of the radius or more, or a voxel size that
+    /// needs more than
     /// [`MAX_LOD`](crate::MAX_LOD) LODs.
     pub fn new(settings: PlanetSettings) -> Result<Self, VoxelError> {
         let positive = |name, value: f64| {
@@ -117,13 +147,24 @@ impl ProceduralPlanet {
         let radius = positive("radius", settings.radius)?;
         let voxel_size = positive("voxel size", settings.voxel_size)?;
         positive("feature size", settings.feature_size)?;
+        positive("detail size", settings.detail_size)?;
+        if !settings.detail_amplitude.is_finite() {
+            return Err(VoxelError::NonFinite { name: "detail amplitude", value: settings.detail_amplitude });
+        }
         if !settings.amplitude.is_finite() {
             return Err(VoxelError::NonFinite { name: "amplitude", value: settings.amplitude });
         }
-        if !(0.0..radius / 2.0).contains(&settings.amplitude) {
+        if !(0.0..radius / 4.0).contains(&settings.detail_amplitude) {
+            return Err(VoxelError::OutOfRange {
+                name: "detail amplitude",
+                requirement: "≥ 0 and below a quarter of the radius",
+                value: settings.detail_amplitude,
+            });
+        }
+        if !(0.0..radius / 4.0).contains(&settings.amplitude) {
             return Err(VoxelError::OutOfRange {
                 name: "amplitude",
-                requirement: "≥ 0 and below half the radius",
+                requirement: "≥ 0 and below a quarter of the radius",
                 value: settings.amplitude,
             });
         }
@@ -150,7 +191,11 @@ impl ProceduralPlanet {
         let ridges = RidgedMulti::<Perlin>::new(settings.seed.wrapping_add(1))
             .set_octaves(octaves.saturating_sub(1).max(1))
             .set_lacunarity(2.0);
+        let hill_octaves = (settings.detail_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 12.0) as usize;
+        let hills = Fbm::<Perlin>::new(settings.seed.wrapping_add(2)).set_octaves(hill_octaves).set_persistence(0.5);
         let mut planet = Self {
+            detail_scale: radius / settings.detail_size,
+            hills,
             noise_scale: radius / settings.feature_size,
             settings,
             layout,
@@ -191,7 +236,9 @@ impl ProceduralPlanet {
         let continents = self.continents.get(p.to_array());
         let ridges = (self.ridges.get((p * 2.0).to_array()) + 1.0) * 0.5;
         let mask = smoothstep(continents / 0.3);
+        let hills = self.hills.get((direction * self.detail_scale).to_array()).clamp(-1.0, 1.0);
         self.settings.amplitude * (0.6 * continents + 0.4 * ridges * mask).clamp(-1.0, 1.0)
+            + self.settings.detail_amplitude * hills
     }
 
     /// Height in radial layers at fractional lattice coordinates `(i, j)`.
@@ -313,7 +360,7 @@ impl VoxelSource for ProceduralPlanet {
             }
         }
         let margin = self.max_slope * step;
-        let limit = self.settings.amplitude / self.layer_height;
+        let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;
         // Voxel tops are within span/2 of H; a solid voxel with air beside it
         // lies below the top, one voxel (span layers) deep at least.
         let min_layer = ((low - margin).max(-limit) - span / 2.0 - span).floor() as i64;

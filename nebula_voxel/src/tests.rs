@@ -39,9 +39,12 @@ fn settings_are_checked() {
     assert!(matches!(bad(|s| s.voxel_size = 0.0), VoxelError::OutOfRange { name: "voxel size", .. }));
     assert!(matches!(bad(|s| s.voxel_size = 1e-9), VoxelError::OutOfRange { name: "voxel size", .. }));
     assert!(matches!(bad(|s| s.amplitude = f64::INFINITY), VoxelError::NonFinite { name: "amplitude", .. }));
-    assert!(matches!(bad(|s| s.amplitude = 1_000.0), VoxelError::OutOfRange { name: "amplitude", .. }));
+    assert!(matches!(bad(|s| s.amplitude = 500.0), VoxelError::OutOfRange { name: "amplitude", .. }));
     assert!(matches!(bad(|s| s.amplitude = -1.0), VoxelError::OutOfRange { name: "amplitude", .. }));
     assert!(matches!(bad(|s| s.feature_size = 0.0), VoxelError::OutOfRange { name: "feature size", .. }));
+    assert!(matches!(bad(|s| s.detail_size = -2.0), VoxelError::OutOfRange { name: "detail size", .. }));
+    assert!(matches!(bad(|s| s.detail_amplitude = f64::NAN), VoxelError::NonFinite { name: "detail amplitude", .. }));
+    assert!(matches!(bad(|s| s.detail_amplitude = 900.0), VoxelError::OutOfRange { name: "detail amplitude", .. }));
     let message = bad(|s| s.radius = -3.0).to_string();
     assert!(message.contains("-3"), "{message}");
 }
