@@ -1,21 +1,59 @@
 //! Per-face quadtrees of chunks chosen by screen-space error, with neighbour
 //! LOD relations across chunk and cube-face edges.
 //!
-//! This crate so far holds the vocabulary the mesher and the quadtree share:
-//! [`NeighborLodRelation`] and [`ChunkLodContext`] (seam spec `003`). The
-//! quadtree itself lands with its own issue.
+//! [`LodTree`] holds one quadtree per cube face; a node is a
+//! [`ChunkColumn`](nebula_voxel::ChunkColumn) (LOD 0 finest, 32³ voxels per
+//! chunk at every LOD). Each [`LodTree::update`] splits a leaf whose
+//! projected error ρ = δ(L)·K/D exceeds τ (seed `001`; D = distance from
+//! the camera to the node's box, which spans the node's surface bounds from
+//! the voxel source) and merges a split node once ρ < τ·(1 − hysteresis).
+//! It reports the leaf chunks added and removed and the leaves whose
+//! neighbour relations changed ([`LodChanges`]), so a renderer re-meshes
+//! only those. Relations cover chunk edges, cube-face edges and corners and
+//! any LOD difference ([`NeighborLodRelation`], [`ChunkLodContext`]);
+//! [`BalanceMode::Restricted`] keeps neighbours within one LOD.
+//!
+//! Choices:
+//! - **View-independent tree, view-dependent drawing**: refinement depends
+//!   on distance only, so turning the camera never re-meshes; horizon and
+//!   frustum culling pick the leaves to draw ([`LodTree::visible_chunks`]).
+//!   A culled leaf stays in the tree, so a visible neighbour's seam is never
+//!   computed against a missing chunk.
+//! - **Incremental by distance margins**: a node's decision can only flip
+//!   after the camera has travelled its margin to the split or merge
+//!   distance, so only due nodes are evaluated (see `tree` docs);
+//!   [`LodTree::update_full`] evaluates everything and must agree (tested
+//!   along random camera paths). `cargo bench -p nebula_lod` compares them.
 //!
 //! ```
-//! use nebula_lod::{ChunkLodContext, FaceDirection, NeighborLodRelation};
+//! use nebula_lod::{Camera, LodSettings, LodTree};
+//! use nebula_math::DVec3;
+//! use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 //!
-//! let mut context = ChunkLodContext::uniform(2);
-//! context.set(FaceDirection::PosX, NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 });
-//! assert_eq!(context.coarser_neighbor_diff(FaceDirection::PosX), Some(1));
-//! assert!(context.needs_skirt(FaceDirection::PosX));
-//! assert!(!context.needs_skirt(FaceDirection::NegZ));
+//! let planet = ProceduralPlanet::new(PlanetSettings::small(1))?;
+//! let settings = LodSettings { threshold_px: 8.0, ..LodSettings::default() };
+//! let mut tree = LodTree::new(&planet, settings)?;
+//! let eye = DVec3::new(0.0, 0.0, 2_300.0);
+//! let camera = Camera { position: eye, forward: -eye, up: DVec3::X, aspect: 1.5 };
+//! let changes = tree.update(&planet, &camera)?;
+//! assert!(!changes.added.is_empty());
+//! // The finest leaves are right under the camera.
+//! let finest = tree.leaves().into_iter().min_by_key(|c| c.lod).unwrap();
+//! assert_eq!(finest.face, nebula_voxel::CubeFace::PosZ);
+//! assert!(tree.stats().visible_leaves < tree.stats().leaves);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod bounds;
 mod relation;
+mod settings;
+mod tree;
 
+pub use bounds::NodeBounds;
 pub use nebula_math::FaceDirection;
 pub use relation::{ChunkLodContext, NeighborLodRelation};
+pub use settings::{BalanceMode, Camera, LodError, LodSettings};
+pub use tree::{LodChanges, LodStats, LodTree, children, parent};
+
+#[cfg(test)]
+mod tests;

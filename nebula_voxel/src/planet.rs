@@ -346,12 +346,12 @@ impl VoxelSource for ProceduralPlanet {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
-        // Sample a 9 × 9 grid; any point of the column is within `step` cells
+        // Sample a 5 × 5 grid; any point of the column is within `step` cells
         // (|Δi| + |Δj|) of a sample, so S·step covers what lies between.
-        let step = chunk / 8.0;
+        let step = chunk / 4.0;
         let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
-        for a in 0..=8 {
-            for b in 0..=8 {
+        for a in 0..=4 {
+            for b in 0..=4 {
                 let i = f64::from(column.x) * chunk + f64::from(a) * step;
                 let j = f64::from(column.y) * chunk + f64::from(b) * step;
                 let h = self.height_layers(column.face, i, j);

@@ -1,0 +1,118 @@
+//! Conservative bounds of a quadtree node: the patch of the cube face it
+//! covers, between the lowest and highest surface the voxel source allows.
+
+use nebula_math::DVec3;
+use nebula_voxel::{CHUNK_SIZE, ChunkColumn, ChunkLayout, SurfaceBounds};
+
+use crate::Camera;
+
+/// World-space bounds of one node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeBounds {
+    /// Axis-aligned box that contains every surface point of the node.
+    pub min: DVec3,
+    /// See `min`.
+    pub max: DVec3,
+    /// Unit direction through the centre of the node's patch.
+    pub center_direction: DVec3,
+    /// Largest angle (radians) between `center_direction` and a point of
+    /// the patch.
+    pub angular_radius: f64,
+    /// Lowest surface radius in the node, metres.
+    pub min_radius: f64,
+    /// Highest surface radius in the node, metres.
+    pub max_radius: f64,
+}
+
+impl NodeBounds {
+    /// Bounds of `column`'s patch between the radii of `surface`.
+    ///
+    /// The box holds a 3 × 3 grid of patch points at both radii, grown by
+    /// how far the sphere bulges between grid points
+    /// (`r·(1 − cos(φ/2))` for grid spacing φ), so it holds the whole
+    /// curved patch.
+    #[must_use]
+    pub fn new(layout: &ChunkLayout, column: ChunkColumn, surface: &SurfaceBounds) -> Self {
+        let sphere = layout.sphere();
+        let size = f64::from(CHUNK_SIZE) * layout.voxel_span(column.lod) as f64;
+        let (i0, j0) = (f64::from(column.x) * size, f64::from(column.y) * size);
+        let direction = |a: f64, b: f64| sphere.direction(column.face, i0 + a * size, j0 + b * size);
+        let center_direction = direction(0.5, 0.5);
+        let (mut min, mut max) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let mut angular_radius = 0.0_f64;
+        let mut spacing = 0.0_f64;
+        for a in 0..3 {
+            for b in 0..3 {
+                let d = direction(f64::from(a) * 0.5, f64::from(b) * 0.5);
+                angular_radius = angular_radius.max(center_direction.angle_between(d));
+                if a < 2 && b < 2 {
+                    let diagonal = direction(f64::from(a + 1) * 0.5, f64::from(b + 1) * 0.5);
+                    spacing = spacing.max(d.angle_between(diagonal));
+                }
+                for radius in [surface.min_radius, surface.max_radius] {
+                    min = min.min(d * radius);
+                    max = max.max(d * radius);
+                }
+            }
+        }
+        let bulge = surface.max_radius * (1.0 - (spacing / 2.0).cos());
+        Self {
+            min: min - DVec3::splat(bulge),
+            max: max + DVec3::splat(bulge),
+            center_direction,
+            angular_radius,
+            min_radius: surface.min_radius,
+            max_radius: surface.max_radius,
+        }
+    }
+
+    /// Distance from `point` to the box (0 inside).
+    #[must_use]
+    pub fn distance(&self, point: DVec3) -> f64 {
+        let outside = (self.min - point).max(point - self.max).max(DVec3::ZERO);
+        outside.length()
+    }
+
+    /// Whether the whole node is hidden behind the horizon of the sphere of
+    /// radius `occluder_radius` (the lowest surface anywhere). A point at
+    /// radius r is seen from distance d over that sphere iff its angle from
+    /// the camera's direction is at most acos(R/d) + acos(R/r); the node's
+    /// nearest point is at least `angle − angular_radius` away.
+    #[must_use]
+    pub fn behind_horizon(&self, camera: DVec3, occluder_radius: f64) -> bool {
+        let d = camera.length();
+        if d <= occluder_radius || self.max_radius <= occluder_radius {
+            return false;
+        }
+        let limit = (occluder_radius / d).acos() + (occluder_radius / self.max_radius).acos();
+        let nearest = camera.angle_between(self.center_direction) - self.angular_radius;
+        nearest > limit
+    }
+
+    /// Whether the box lies entirely outside the view frustum of `camera`
+    /// with vertical field of view `fov_y_degrees` (no near or far plane).
+    #[must_use]
+    pub fn outside_frustum(&self, camera: &Camera, fov_y_degrees: f64) -> bool {
+        let forward = camera.forward.normalize();
+        let right = forward.cross(camera.up).normalize();
+        let up = right.cross(forward);
+        let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
+        let tan_x = tan_y * camera.aspect;
+        // Inward normals of the four side planes through the eye.
+        let planes = [
+            (forward * tan_x + right).normalize(),
+            (forward * tan_x - right).normalize(),
+            (forward * tan_y + up).normalize(),
+            (forward * tan_y - up).normalize(),
+        ];
+        planes.iter().any(|&n| {
+            // The box corner furthest along the plane normal.
+            let corner = DVec3::new(
+                if n.x >= 0.0 { self.max.x } else { self.min.x },
+                if n.y >= 0.0 { self.max.y } else { self.min.y },
+                if n.z >= 0.0 { self.max.z } else { self.min.z },
+            );
+            n.dot(corner - camera.position) < 0.0
+        })
+    }
+}

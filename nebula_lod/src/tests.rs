@@ -1,0 +1,295 @@
+//! Tests of the LOD quadtrees.
+
+use std::collections::HashMap;
+use std::sync::OnceLock;
+
+use nebula_math::{DVec3, FaceEdge};
+use nebula_voxel::{ChunkColumn, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};
+use proptest::prelude::*;
+
+use crate::*;
+
+fn planet() -> &'static ProceduralPlanet {
+    static PLANET: OnceLock<ProceduralPlanet> = OnceLock::new();
+    PLANET.get_or_init(|| ProceduralPlanet::new(PlanetSettings::small(5)).unwrap())
+}
+
+fn camera_at(position: DVec3) -> Camera {
+    // Looking at the planet centre, up any direction not parallel.
+    let forward = -position;
+    let up = if forward.cross(DVec3::Z).length() > 1e-3 * forward.length() { DVec3::Z } else { DVec3::X };
+    Camera { position, forward, up, aspect: 16.0 / 9.0 }
+}
+
+/// A camera `height` metres above the surface bound in direction `dir`.
+fn camera_above(tree: &LodTree, dir: DVec3, height: f64) -> Camera {
+    let radius = planet().settings().radius + planet().settings().amplitude + planet().settings().detail_amplitude;
+    let _ = tree;
+    camera_at(dir.normalize() * (radius + height))
+}
+
+/// 8 px of error on a 1080-line screen: small trees, fast tests (the
+/// default 1 px refines a 2 km planet to LOD 0 from anywhere near it).
+fn settings(balance: BalanceMode) -> LodSettings {
+    LodSettings { balance, threshold_px: 8.0, ..LodSettings::default() }
+}
+
+/// Which leaf covers the cell `column` (walking up), if any.
+fn covering(
+    leaves: &HashMap<ChunkColumn, ChunkLodContext>,
+    mut column: ChunkColumn,
+    max_lod: u8,
+) -> Option<ChunkColumn> {
+    loop {
+        if leaves.contains_key(&column) {
+            return Some(column);
+        }
+        if column.lod == max_lod {
+            return None;
+        }
+        column = parent(column);
+    }
+}
+
+fn contexts(tree: &LodTree) -> HashMap<ChunkColumn, ChunkLodContext> {
+    tree.leaves().into_iter().map(|c| (c, tree.context(c).unwrap())).collect()
+}
+
+/// Every face is tiled exactly once by the leaves.
+fn assert_tiles_faces(tree: &LodTree) {
+    let max_lod = planet().layout().max_lod();
+    let leaves = contexts(tree);
+    for face in CubeFace::ALL {
+        let area: u64 = leaves.keys().filter(|c| c.face == face).map(|c| 1u64 << (2 * u32::from(c.lod))).sum();
+        assert_eq!(area, 1u64 << (2 * u32::from(max_lod)), "{face:?} not covered exactly");
+    }
+    for &leaf in leaves.keys() {
+        if leaf.lod < max_lod {
+            assert!(covering(&leaves, parent(leaf), max_lod).is_none(), "{leaf:?} overlaps an ancestor leaf");
+        }
+    }
+}
+
+/// Relations are symmetric and report the true LOD difference, across
+/// chunk edges, cube-face edges and at corners.
+fn assert_relations(tree: &LodTree, restricted: bool) {
+    let layout = planet().layout();
+    let max_lod = layout.max_lod();
+    let leaves = contexts(tree);
+    for (&leaf, context) in &leaves {
+        for edge in FaceEdge::ALL {
+            let side = FaceDirection::from_face_edge(edge);
+            let (di, dj) = edge.step();
+            let per_edge = i64::from(layout.chunks_per_edge(leaf.lod));
+            let (face, x, y) = leaf.face.wrap_cell(i64::from(leaf.x) + di, i64::from(leaf.y) + dj, per_edge).unwrap();
+            let across = ChunkColumn { face, lod: leaf.lod, x: x as u32, y: y as u32 };
+            let back = if face == leaf.face { edge.opposite() } else { leaf.face.neighbor(edge).edge };
+            let back_side = FaceDirection::from_face_edge(back);
+            match context.relation(side) {
+                NeighborLodRelation::Same => {
+                    assert!(leaves.contains_key(&across), "{leaf:?} {edge:?}: no same-LOD leaf");
+                    assert_eq!(leaves[&across].relation(back_side), NeighborLodRelation::Same);
+                }
+                NeighborLodRelation::HigherThanNeighbor { lod_diff } => {
+                    let coarse = covering(&leaves, across, max_lod).expect("a coarser leaf");
+                    assert_eq!(coarse.lod - leaf.lod, lod_diff, "{leaf:?} {edge:?}");
+                    assert_eq!(leaves[&coarse].relation(back_side), NeighborLodRelation::LowerThanNeighbor);
+                    assert!(!restricted || lod_diff == 1, "restricted mode left a difference of {lod_diff}");
+                    assert!(tree.coarse_edge_segment(leaf, edge).is_some_and(|(i, n)| i < n && n == 1 << lod_diff));
+                }
+                NeighborLodRelation::LowerThanNeighbor => {
+                    assert!(covering(&leaves, across, max_lod).is_none(), "{leaf:?} {edge:?}: finer expected");
+                    // Every finer leaf along the edge reports this leaf coarser.
+                    let finer: Vec<_> = leaves
+                        .iter()
+                        .filter(|(c, _)| c.face == across.face && c.lod < leaf.lod)
+                        .filter(|(c, _)| {
+                            let shift = leaf.lod - c.lod;
+                            c.x >> shift == across.x && c.y >> shift == across.y
+                        })
+                        .filter(|(c, ctx)| ctx.coarser_neighbor_diff(back_side) == Some(leaf.lod - c.lod))
+                        .collect();
+                    assert!(!finer.is_empty(), "{leaf:?} {edge:?}: no finer leaf points back");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn split_decision_matches_the_sse_formula_at_the_boundary() {
+    let source = planet();
+    let settings = settings(BalanceMode::Unrestricted);
+    let screen = settings.screen_space().unwrap();
+    let max_lod = source.layout().max_lod();
+    let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
+    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
+    for (factor, expect_split) in [(0.999_999, true), (1.000_001, false)] {
+        let mut tree = LodTree::new(source, settings).unwrap();
+        let bounds = *tree.node_bounds(root).unwrap();
+        // On the +Z axis, above the box: distance = z − max.z.
+        let camera = camera_at(DVec3::new(0.0, 0.0, bounds.max.z + split_distance * factor));
+        assert!((bounds.distance(camera.position) - split_distance * factor).abs() < 1e-6 * split_distance);
+        tree.update(source, &camera).unwrap();
+        let split = tree.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod);
+        assert_eq!(split, expect_split, "factor {factor}");
+    }
+}
+
+#[test]
+fn hysteresis_keeps_a_fresh_split() {
+    let source = planet();
+    let settings = settings(BalanceMode::Unrestricted);
+    let screen = settings.screen_space().unwrap();
+    let max_lod = source.layout().max_lod();
+    let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
+    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
+    let mut tree = LodTree::new(source, settings).unwrap();
+    let top = tree.node_bounds(root).unwrap().max.z;
+    tree.update(source, &camera_at(DVec3::new(0.0, 0.0, top + split_distance * 0.99))).unwrap();
+    let split = |t: &LodTree| t.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod);
+    assert!(split(&tree));
+    // Just outside the split distance it stays split (within hysteresis)...
+    tree.update(source, &camera_at(DVec3::new(0.0, 0.0, top + split_distance * 1.1))).unwrap();
+    assert!(split(&tree));
+    // ...and merges beyond D / (1 − hysteresis).
+    tree.update(source, &camera_at(DVec3::new(0.0, 0.0, top + split_distance * 1.3))).unwrap();
+    assert!(!split(&tree));
+}
+
+#[test]
+fn bad_cameras_and_settings_are_errors_and_change_nothing() {
+    let source = planet();
+    let mut tree = LodTree::new(source, settings(BalanceMode::Unrestricted)).unwrap();
+    let good = camera_above(&tree, DVec3::new(1.0, 0.2, 0.3), 50.0);
+    tree.update(source, &good).unwrap();
+    let before = contexts(&tree);
+    let inside = camera_at(DVec3::new(0.0, 0.0, 100.0));
+    assert!(matches!(tree.update(source, &inside), Err(LodError::CameraInsidePlanet { .. })));
+    for broken in [
+        Camera { position: DVec3::new(f64::NAN, 0.0, 5000.0), ..good },
+        Camera { forward: DVec3::ZERO, ..good },
+        Camera { up: good.forward, ..good },
+        Camera { aspect: 0.0, ..good },
+        Camera { aspect: f64::INFINITY, ..good },
+    ] {
+        assert!(matches!(tree.update(source, &broken), Err(LodError::BadCamera { .. })), "{broken:?}");
+    }
+    assert_eq!(contexts(&tree), before);
+    let bad = |s: LodSettings| LodTree::new(source, s).err().unwrap();
+    assert!(matches!(bad(LodSettings { fov_y_degrees: 0.0, ..LodSettings::default() }), LodError::Math(_)));
+    assert!(matches!(bad(LodSettings { screen_height_px: f64::NAN, ..LodSettings::default() }), LodError::Math(_)));
+    assert!(matches!(bad(LodSettings { threshold_px: -1.0, ..LodSettings::default() }), LodError::Math(_)));
+    assert!(matches!(bad(LodSettings { hysteresis: 1.0, ..LodSettings::default() }), LodError::BadHysteresis { .. }));
+    assert!(matches!(bad(LodSettings { finest_lod: 40, ..LodSettings::default() }), LodError::BadFinestLod { .. }));
+}
+
+#[test]
+fn earth_scale_reaches_lod_0_under_the_camera() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(1)).unwrap();
+    let mut tree = LodTree::new(&earth, settings(BalanceMode::Unrestricted)).unwrap();
+    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
+    // 2 m above the ground below.
+    let camera = camera_at(dir * (6_371_000.0 + earth.height_at(dir) + 2.0));
+    tree.update(&earth, &camera).unwrap();
+    let stats = tree.stats().clone();
+    assert!(stats.lod_histogram[0] > 0, "{:?}", stats.lod_histogram);
+    assert!(stats.lod_histogram[18] == 0, "{:?}", stats.lod_histogram);
+    assert!(stats.leaves < 20_000, "{}", stats.leaves);
+    println!(
+        "earth, 2 m above the ground: {} leaves, {} visible, LODs {:?}",
+        stats.leaves, stats.visible_leaves, stats.lod_histogram
+    );
+}
+
+#[test]
+fn changes_describe_the_leaf_difference() {
+    let source = planet();
+    let mut tree = LodTree::new(source, settings(BalanceMode::Unrestricted)).unwrap();
+    let first = tree.update(source, &camera_above(&tree, DVec3::new(1.0, 1.0, 1.0), 30.0)).unwrap();
+    assert!(first.removed.is_empty());
+    assert_eq!(first.added.len(), tree.leaves().iter().map(|&c| tree.layers(c).unwrap().count()).sum::<usize>());
+    let before = contexts(&tree);
+    let second = tree.update(source, &camera_above(&tree, DVec3::new(1.0, 0.9, 1.1), 30.0)).unwrap();
+    let after = contexts(&tree);
+    for key in &second.added {
+        assert!(after.contains_key(&key.column()) && !before.contains_key(&key.column()));
+    }
+    for key in &second.removed {
+        assert!(before.contains_key(&key.column()) && !after.contains_key(&key.column()));
+    }
+    for key in &second.neighbours_changed {
+        let c = key.column();
+        assert!(before.contains_key(&c) && after.contains_key(&c) && before[&c] != after[&c]);
+    }
+    // Every leaf whose relations changed is reported.
+    for (c, ctx) in &after {
+        if before.get(c).is_some_and(|old| old != ctx) {
+            assert!(second.neighbours_changed.iter().any(|k| k.column() == *c), "{c:?} not reported");
+        }
+    }
+    assert!(!second.added.is_empty() && !second.removed.is_empty());
+}
+
+fn direction() -> impl Strategy<Value = DVec3> {
+    (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0)
+        .prop_filter("not zero", |(x, y, z)| x * x + y * y + z * z > 0.01)
+        .prop_map(|(x, y, z)| DVec3::new(x, y, z).normalize())
+}
+
+/// Directions above cube corners and edges, where faces meet.
+fn seam_direction() -> impl Strategy<Value = DVec3> {
+    (0usize..8, 0usize..3, -0.2f64..0.2).prop_map(|(corner, edge, t)| {
+        let s = nebula_math::CubeCorner::ALL[corner].signs.map(f64::from);
+        let mut d = DVec3::from_array(s);
+        d[edge] *= t; // 0 → above an edge midpoint, ±0.2 → near it
+        d.normalize()
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn leaves_tile_faces_and_relations_are_symmetric(
+        dir in prop_oneof![direction(), seam_direction()], height in 1.0f64..20_000.0, restricted in any::<bool>(),
+    ) {
+        let source = planet();
+        let balance = if restricted { BalanceMode::Restricted } else { BalanceMode::Unrestricted };
+        let mut tree = LodTree::new(source, settings(balance)).unwrap();
+        tree.update(source, &camera_above(&tree, dir, height)).unwrap();
+        assert_tiles_faces(&tree);
+        assert_relations(&tree, restricted);
+        if restricted {
+            prop_assert!(tree.stats().max_neighbor_lod_diff <= 1);
+            prop_assert!(tree.stats().balance_passes >= 1);
+        }
+    }
+
+    /// The incremental update and the full traversal agree frame by frame
+    /// along any camera path.
+    #[test]
+    fn incremental_update_matches_full_traversal(
+        start in prop_oneof![direction(), seam_direction()], steps in proptest::collection::vec((direction(), 0.0f64..400.0, -50.0f64..50.0), 1..12),
+        height in 2.0f64..3_000.0, restricted in any::<bool>(),
+    ) {
+        let source = planet();
+        let balance = if restricted { BalanceMode::Restricted } else { BalanceMode::Unrestricted };
+        let mut incremental = LodTree::new(source, settings(balance)).unwrap();
+        let mut full = LodTree::new(source, settings(balance)).unwrap();
+        let mut dir = start;
+        let mut h = height;
+        let radius = camera_above(&full, dir, 0.0).position.length();
+        for (wind, distance, climb) in steps {
+            let a = incremental.update(source, &camera_above(&incremental, dir, h)).unwrap();
+            let b = full.update_full(source, &camera_above(&full, dir, h)).unwrap();
+            prop_assert_eq!(contexts(&incremental), contexts(&full));
+            prop_assert_eq!(a, b);
+            // Move along the surface by `distance` metres and climb.
+            let tangent = (wind - dir * wind.dot(dir)).normalize_or_zero();
+            dir = (dir + tangent * (distance / radius)).normalize();
+            h = (h + climb).max(1.0);
+        }
+        prop_assert!(incremental.stats().nodes_evaluated <= full.stats().nodes_evaluated);
+    }
+}

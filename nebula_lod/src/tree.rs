@@ -1,0 +1,650 @@
+//! The per-face quadtrees and their incremental update.
+//!
+//! # Conventions
+//!
+//! A node is a [`ChunkColumn`]: face, LOD and chunk coordinates at that LOD.
+//! Depth = `max_lod − lod`; each face's root is the single column at the
+//! planet's coarsest LOD. Children of `(lod, x, y)` are
+//!
+//! ```text
+//!   (lod−1, 2x,   2y+1) │ (lod−1, 2x+1, 2y+1)        v (j)
+//!   ────────────────────┼────────────────────        ↑
+//!   (lod−1, 2x,   2y)   │ (lod−1, 2x+1, 2y)          └→ u (i)
+//! ```
+//!
+//! Neighbours across an edge are found at the node's own LOD with
+//! `CubeFace::wrap_cell`, which folds coordinates over cube-face edges
+//! exactly; then the tree is walked up (a coarser leaf covers the cell) or
+//! the cell is found split (finer leaves meet the edge).
+//!
+//! # Incremental updates
+//!
+//! A node's split/merge decision depends only on its distance D to the
+//! camera, and D changes no faster than the camera moves. So each evaluated
+//! node stores how far the camera may travel before the decision could flip
+//! (`D − D_split` for a leaf, `D_merge − D` for a split node), and is queued
+//! by "camera odometer + that margin". A frame pops only the nodes that are
+//! due, top-down; neighbour relations are recomputed only for leaves that
+//! changed and their neighbours (seed `002`'s dirty markers).
+
+use std::cmp::Reverse;
+use std::collections::{BTreeSet, BinaryHeap, HashMap, HashSet};
+
+use nebula_math::{DVec3, FaceEdge, ScreenSpace};
+use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, VoxelSource};
+
+use crate::{
+    BalanceMode, Camera, ChunkLodContext, FaceDirection, LodError, LodSettings, NeighborLodRelation, NodeBounds,
+};
+
+/// What changed in one update, so a renderer re-meshes only that.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LodChanges {
+    /// Chunks of new leaves.
+    pub added: Vec<ChunkKey>,
+    /// Chunks of leaves that are gone.
+    pub removed: Vec<ChunkKey>,
+    /// Chunks of leaves that stayed but whose neighbour relations changed
+    /// (re-mesh their seams).
+    pub neighbours_changed: Vec<ChunkKey>,
+}
+
+/// Figures of the last update.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LodStats {
+    /// Nodes whose decision was evaluated.
+    pub nodes_evaluated: usize,
+    /// Leaves in the tree.
+    pub leaves: usize,
+    /// Leaves in view (not behind the horizon, not outside the frustum).
+    pub visible_leaves: usize,
+    /// Leaves per LOD (index = LOD).
+    pub lod_histogram: Vec<usize>,
+    /// Largest LOD difference between neighbouring leaves.
+    pub max_neighbor_lod_diff: u8,
+    /// Passes of the balance filter ([`BalanceMode::Restricted`]).
+    pub balance_passes: usize,
+}
+
+#[derive(Clone, Debug)]
+struct Node {
+    bounds: NodeBounds,
+    layers: (i32, i32),
+    /// Bumped on every evaluation: stale queue entries carry an old one.
+    generation: u32,
+}
+
+/// The LOD selection of a whole planet: one quadtree per cube face.
+#[derive(Clone)]
+pub struct LodTree {
+    settings: LodSettings,
+    screen: ScreenSpace,
+    layout: ChunkLayout,
+    /// Lowest surface radius anywhere (occluder for horizon culling).
+    min_surface_radius: f64,
+    /// δ(L) per LOD, metres.
+    errors: Vec<f64>,
+    /// Every node of the SSE tree (leaves and split nodes).
+    nodes: HashMap<ChunkColumn, Node>,
+    /// Split nodes of the SSE tree.
+    split: HashSet<ChunkColumn>,
+    /// Split nodes of the tree that is drawn: `split`, plus the splits the
+    /// balance filter forces in restricted mode.
+    drawn_split: HashSet<ChunkColumn>,
+    /// Leaves of the drawn tree, with their neighbour relations (by
+    /// [`FaceEdge`]) and radial chunk layers.
+    leaves: HashMap<ChunkColumn, ([NeighborLodRelation; 4], (i32, i32))>,
+    visible: Vec<ChunkColumn>,
+    queue: BinaryHeap<Reverse<(u64, u8, ChunkColumn, u32)>>,
+    odometer: f64,
+    last_camera: Option<DVec3>,
+    stats: LodStats,
+}
+
+impl LodTree {
+    /// A tree of the six face roots for the planet of `source`.
+    ///
+    /// # Errors
+    /// [`LodError`] for bad settings or a source that refuses the roots.
+    pub fn new<S: VoxelSource + ?Sized>(source: &S, settings: LodSettings) -> Result<Self, LodError> {
+        let screen = settings.screen_space()?;
+        let layout = *source.layout();
+        if settings.finest_lod > layout.max_lod() {
+            return Err(LodError::BadFinestLod { finest_lod: settings.finest_lod, max_lod: layout.max_lod() });
+        }
+        let errors = (0..=layout.max_lod()).map(|lod| source.geometric_error(lod)).collect();
+        let mut tree = Self {
+            settings,
+            screen,
+            layout,
+            min_surface_radius: f64::INFINITY,
+            errors,
+            nodes: HashMap::new(),
+            split: HashSet::new(),
+            drawn_split: HashSet::new(),
+            leaves: HashMap::new(),
+            visible: Vec::new(),
+            queue: BinaryHeap::new(),
+            odometer: 0.0,
+            last_camera: None,
+            stats: LodStats::default(),
+        };
+        for face in CubeFace::ALL {
+            let root = ChunkColumn { face, lod: layout.max_lod(), x: 0, y: 0 };
+            tree.insert_node(source, root)?;
+            tree.min_surface_radius = tree.min_surface_radius.min(tree.nodes[&root].bounds.min_radius);
+            // Due at once: the first update evaluates every root.
+            tree.schedule(root, 0.0);
+        }
+        Ok(tree)
+    }
+
+    /// The settings in use.
+    #[must_use]
+    pub fn settings(&self) -> &LodSettings {
+        &self.settings
+    }
+
+    /// Radius below which the planet is solid everywhere.
+    #[must_use]
+    pub fn min_surface_radius(&self) -> f64 {
+        self.min_surface_radius
+    }
+
+    /// Figures of the last update.
+    #[must_use]
+    pub fn stats(&self) -> &LodStats {
+        &self.stats
+    }
+
+    /// Bounds of a node of the tree, if it exists.
+    #[must_use]
+    pub fn node_bounds(&self, column: ChunkColumn) -> Option<&NodeBounds> {
+        self.nodes.get(&column).map(|n| &n.bounds)
+    }
+
+    /// The leaves of the drawn tree, sorted.
+    #[must_use]
+    pub fn leaves(&self) -> Vec<ChunkColumn> {
+        let mut leaves: Vec<_> = self.leaves.keys().copied().collect();
+        leaves.sort_unstable();
+        leaves
+    }
+
+    /// The neighbour relations of a leaf, by [`FaceDirection`], as the
+    /// mesher takes them.
+    #[must_use]
+    pub fn context(&self, column: ChunkColumn) -> Option<ChunkLodContext> {
+        let (relations, _) = self.leaves.get(&column)?;
+        let mut context = ChunkLodContext::uniform(column.lod);
+        for (edge, relation) in FaceEdge::ALL.iter().zip(relations) {
+            context.set(FaceDirection::from_face_edge(*edge), *relation);
+        }
+        Some(context)
+    }
+
+    /// The radial chunk layers of a leaf that can hold surface.
+    #[must_use]
+    pub fn layers(&self, column: ChunkColumn) -> Option<std::ops::RangeInclusive<i32>> {
+        self.leaves.get(&column).map(|(_, layers)| layers.0..=layers.1)
+    }
+
+    /// For a leaf that meets a coarser neighbour on `edge`: which segment of
+    /// the coarse edge it covers, as `(index, count)`: the coarse edge is
+    /// cut into `count = 2^lod_diff` pieces of this leaf's size and the leaf
+    /// meets piece `index` (counted along the leaf's own edge direction).
+    #[must_use]
+    pub fn coarse_edge_segment(&self, column: ChunkColumn, edge: FaceEdge) -> Option<(u32, u32)> {
+        let NeighborLodRelation::HigherThanNeighbor { lod_diff } = self.leaves.get(&column)?.0[edge as usize] else {
+            return None;
+        };
+        let along = match edge {
+            FaceEdge::NegU | FaceEdge::PosU => column.y,
+            FaceEdge::NegV | FaceEdge::PosV => column.x,
+        };
+        let count = 1u32 << lod_diff;
+        Some((along % count, count))
+    }
+
+    /// The leaf chunks in view after the last update.
+    #[must_use]
+    pub fn visible_chunks(&self) -> Vec<ChunkKey> {
+        self.visible.iter().flat_map(|&c| self.layers(c).into_iter().flatten().map(move |l| c.chunk(l))).collect()
+    }
+
+    /// The leaf columns in view after the last update.
+    #[must_use]
+    pub fn visible_leaves(&self) -> &[ChunkColumn] {
+        &self.visible
+    }
+
+    /// Updates the tree for `camera`, evaluating only the nodes whose
+    /// decision may have changed since they were last evaluated.
+    ///
+    /// # Errors
+    /// [`LodError`] for a bad camera (NaN, inside the planet, degenerate
+    /// view) or a node the source refuses. The tree is unchanged then.
+    pub fn update<S: VoxelSource + ?Sized>(&mut self, source: &S, camera: &Camera) -> Result<LodChanges, LodError> {
+        self.update_with(source, camera, false)
+    }
+
+    /// Like [`LodTree::update`], but evaluates every node of the tree (the
+    /// full traversal the incremental update is measured against). Gives
+    /// the same tree.
+    ///
+    /// # Errors
+    /// As [`LodTree::update`].
+    pub fn update_full<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        camera: &Camera,
+    ) -> Result<LodChanges, LodError> {
+        self.update_with(source, camera, true)
+    }
+
+    fn update_with<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        camera: &Camera,
+        full: bool,
+    ) -> Result<LodChanges, LodError> {
+        camera.check()?;
+        let distance = camera.position.length();
+        if distance < self.min_surface_radius {
+            return Err(LodError::CameraInsidePlanet { distance, min_surface_radius: self.min_surface_radius });
+        }
+        let eye = camera.position;
+        if let Some(last) = self.last_camera {
+            self.odometer += last.distance(eye);
+        }
+        self.last_camera = Some(eye);
+        let old_leaves = self.leaves.clone();
+        let mut changed = BTreeSet::new();
+        let mut evaluated = 0;
+        if full {
+            self.queue.clear();
+            for face in CubeFace::ALL {
+                let root = ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 };
+                self.evaluate(source, root, eye, &mut changed, &mut evaluated, true)?;
+            }
+        } else {
+            let mut due = Vec::new();
+            while let Some(Reverse((at, _, _, _))) = self.queue.peek() {
+                if f64::from_bits(*at) > self.odometer {
+                    break;
+                }
+                let Some(Reverse((_, _, column, generation))) = self.queue.pop() else { break };
+                due.push((column, generation));
+            }
+            // Top-down: coarse LODs (small depth) first.
+            due.sort_by_key(|(c, _)| Reverse(c.lod));
+            for (column, generation) in due {
+                if self.nodes.get(&column).is_some_and(|n| n.generation == generation) {
+                    self.evaluate(source, column, eye, &mut changed, &mut evaluated, false)?;
+                }
+            }
+        }
+        self.stats.nodes_evaluated = evaluated;
+        if !changed.is_empty() || self.leaves.is_empty() || full {
+            self.rebuild_drawn_tree(source, &changed, full)?;
+        }
+        let changes = self.diff(&old_leaves);
+        self.cull(camera);
+        Ok(changes)
+    }
+
+    /// Applies the split/merge rule to `column` and schedules its next
+    /// check. Newly split children are evaluated at once; with `recurse`,
+    /// children of a node that stays split are too.
+    fn evaluate<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        column: ChunkColumn,
+        eye: DVec3,
+        changed: &mut BTreeSet<ChunkColumn>,
+        evaluated: &mut usize,
+        recurse: bool,
+    ) -> Result<(), LodError> {
+        *evaluated += 1;
+        let distance = self.nodes[&column].bounds.distance(eye);
+        let split_distance = self.split_distance(column.lod);
+        let merge_distance = split_distance / (1.0 - self.settings.hysteresis);
+        let is_split = self.split.contains(&column);
+        let (now_split, margin) = if column.lod <= self.settings.finest_lod {
+            (false, f64::INFINITY)
+        } else if is_split {
+            if distance > merge_distance {
+                (false, distance - split_distance)
+            } else {
+                (true, merge_distance - distance)
+            }
+        } else if distance < split_distance {
+            (true, merge_distance - distance)
+        } else {
+            (false, distance - split_distance)
+        };
+        if now_split && !is_split {
+            // Children first, so an error leaves the tree as it was.
+            let children = children(column);
+            for child in children {
+                self.insert_node(source, child)?;
+            }
+            self.split.insert(column);
+            changed.insert(column);
+            self.schedule(column, margin);
+            for child in children {
+                self.evaluate(source, child, eye, changed, evaluated, recurse)?;
+            }
+        } else if !now_split && is_split {
+            self.remove_subtree(column, changed);
+            self.split.remove(&column);
+            changed.insert(column);
+            self.schedule(column, margin);
+        } else {
+            self.schedule(column, margin);
+            if recurse && is_split {
+                for child in children(column) {
+                    self.evaluate(source, child, eye, changed, evaluated, recurse)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// D_split for a node at `lod`: closer than this, its error exceeds τ.
+    fn split_distance(&self, lod: u8) -> f64 {
+        self.screen.transition_distance(self.errors[usize::from(lod)])
+    }
+
+    fn schedule(&mut self, column: ChunkColumn, margin: f64) {
+        let Some(node) = self.nodes.get_mut(&column) else { return };
+        node.generation = node.generation.wrapping_add(1);
+        if margin.is_finite() {
+            // Shave a hair off so rounding never delays a due check.
+            let at = self.odometer + (margin * (1.0 - 1e-9) - 1e-9).max(0.0);
+            self.queue.push(Reverse((at.to_bits(), column.lod, column, node.generation)));
+        }
+    }
+
+    fn insert_node<S: VoxelSource + ?Sized>(&mut self, source: &S, column: ChunkColumn) -> Result<(), LodError> {
+        if self.nodes.contains_key(&column) {
+            return Ok(());
+        }
+        let surface = source.surface_bounds(column)?;
+        let layers = source.surface_chunk_layers(column)?;
+        let bounds = NodeBounds::new(&self.layout, column, &surface);
+        self.nodes.insert(column, Node { bounds, layers: (*layers.start(), *layers.end()), generation: 0 });
+        Ok(())
+    }
+
+    fn remove_subtree(&mut self, column: ChunkColumn, changed: &mut BTreeSet<ChunkColumn>) {
+        for child in children(column) {
+            if self.split.remove(&child) {
+                self.remove_subtree(child, changed);
+            }
+            self.nodes.remove(&child);
+            changed.insert(child);
+        }
+    }
+
+    /// Derives the drawn tree from the SSE tree: the same in unrestricted
+    /// mode; in restricted mode its least refinement with neighbours at
+    /// most one LOD apart (a monotone filter: only splits, so it ends).
+    fn rebuild_drawn_tree<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        changed: &BTreeSet<ChunkColumn>,
+        full: bool,
+    ) -> Result<(), LodError> {
+        self.drawn_split.clone_from(&self.split);
+        self.stats.balance_passes = 0;
+        let restricted = self.settings.balance == BalanceMode::Restricted;
+        if restricted {
+            loop {
+                let leaves = self.drawn_leaves();
+                let to_split: Vec<ChunkColumn> =
+                    leaves.into_iter().filter(|&leaf| self.violates_balance(leaf)).collect();
+                self.stats.balance_passes += 1;
+                if to_split.is_empty() {
+                    break;
+                }
+                for &column in &to_split {
+                    for child in children(column) {
+                        self.insert_node(source, child)?;
+                    }
+                }
+                self.drawn_split.extend(to_split);
+            }
+            // Forget nodes of forced splits that are no longer drawn.
+            let drawn = self.drawn_leaves();
+            let split = &self.split;
+            let drawn_split = &self.drawn_split;
+            self.nodes.retain(|c, _| {
+                drawn.contains(c)
+                    || drawn_split.contains(c)
+                    || c.lod == self.layout.max_lod()
+                    || split.contains(&parent(*c))
+            });
+        }
+        // Relations: all leaves after a full traversal or in restricted mode
+        // (the filter may have moved any leaf), else only leaves near change.
+        let leaves = self.drawn_leaves();
+        let dirty: Vec<ChunkColumn> = if full || restricted || self.leaves.is_empty() {
+            leaves.iter().copied().collect()
+        } else {
+            let mut dirty = BTreeSet::new();
+            for &column in changed {
+                dirty.extend(self.leaves_touching(column));
+            }
+            dirty.into_iter().filter(|c| leaves.contains(c)).collect()
+        };
+        self.leaves.retain(|c, _| leaves.contains(c));
+        for column in
+            dirty.into_iter().chain(leaves.iter().copied().filter(|c| !self.leaves.contains_key(c))).collect::<Vec<_>>()
+        {
+            let relations = FaceEdge::ALL.map(|edge| self.relation(column, edge));
+            let layers = self.nodes[&column].layers;
+            self.leaves.insert(column, (relations, layers));
+        }
+        self.stats.max_neighbor_lod_diff = self
+            .leaves
+            .values()
+            .flat_map(|(relations, _)| relations)
+            .filter_map(|r| match r {
+                NeighborLodRelation::HigherThanNeighbor { lod_diff } => Some(*lod_diff),
+                _ => None,
+            })
+            .max()
+            .unwrap_or(0);
+        Ok(())
+    }
+
+    /// Leaves of the drawn tree.
+    fn drawn_leaves(&self) -> HashSet<ChunkColumn> {
+        let mut leaves = HashSet::new();
+        let mut stack: Vec<ChunkColumn> =
+            CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
+        while let Some(column) = stack.pop() {
+            if self.drawn_split.contains(&column) {
+                stack.extend(children(column));
+            } else {
+                leaves.insert(column);
+            }
+        }
+        leaves
+    }
+
+    /// Whether a drawn leaf has a neighbour more than one LOD finer.
+    fn violates_balance(&self, leaf: ChunkColumn) -> bool {
+        FaceEdge::ALL.iter().any(|&edge| {
+            let Some(across) = self.same_lod_neighbor(leaf, edge) else { return false };
+            if !self.drawn_split.contains(&across) {
+                return false;
+            }
+            let back = self.back_edge(leaf, edge, across);
+            edge_children(across, back).iter().any(|c| self.drawn_split.contains(c))
+        })
+    }
+
+    /// The cell at `column`'s LOD across `edge` (on this or the next face).
+    fn same_lod_neighbor(&self, column: ChunkColumn, edge: FaceEdge) -> Option<ChunkColumn> {
+        let (di, dj) = edge.step();
+        let per_edge = i64::from(self.layout.chunks_per_edge(column.lod));
+        let (face, x, y) = column.face.wrap_cell(i64::from(column.x) + di, i64::from(column.y) + dj, per_edge)?;
+        Some(ChunkColumn { face, lod: column.lod, x: x as u32, y: y as u32 })
+    }
+
+    /// The edge of `across` that faces back to `column`.
+    fn back_edge(&self, column: ChunkColumn, edge: FaceEdge, across: ChunkColumn) -> FaceEdge {
+        if across.face == column.face { edge.opposite() } else { column.face.neighbor(edge).edge }
+    }
+
+    /// Whether `column` exists in the drawn tree (all its ancestors split).
+    fn drawn_exists(&self, column: ChunkColumn) -> bool {
+        let mut node = column;
+        while node.lod < self.layout.max_lod() {
+            node = parent(node);
+            if !self.drawn_split.contains(&node) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The relation of drawn leaf `column` to what lies across `edge`.
+    fn relation(&self, column: ChunkColumn, edge: FaceEdge) -> NeighborLodRelation {
+        let Some(across) = self.same_lod_neighbor(column, edge) else { return NeighborLodRelation::Same };
+        if self.drawn_split.contains(&across) {
+            return NeighborLodRelation::LowerThanNeighbor;
+        }
+        // Walk up to the leaf that covers the cell.
+        let mut cell = across;
+        let mut diff = 0u8;
+        while !self.drawn_exists(cell) {
+            cell = parent(cell);
+            diff += 1;
+        }
+        if diff == 0 { NeighborLodRelation::Same } else { NeighborLodRelation::HigherThanNeighbor { lod_diff: diff } }
+    }
+
+    /// Drawn leaves that meet `column`'s region: inside it, or across any
+    /// of its edges (coarser, same or finer).
+    fn leaves_touching(&self, column: ChunkColumn) -> Vec<ChunkColumn> {
+        let mut found = Vec::new();
+        // The leaf covering the region itself, or the leaves inside it.
+        self.leaves_in(column, &mut found);
+        for edge in FaceEdge::ALL {
+            let Some(across) = self.same_lod_neighbor(column, edge) else { continue };
+            let back = self.back_edge(column, edge, across);
+            let mut cell = across;
+            while !self.drawn_exists(cell) {
+                cell = parent(cell);
+            }
+            if cell == across {
+                self.leaves_along(across, back, &mut found);
+            } else {
+                found.push(cell);
+            }
+        }
+        found
+    }
+
+    /// Drawn leaves inside `column` (or the leaf covering it).
+    fn leaves_in(&self, column: ChunkColumn, found: &mut Vec<ChunkColumn>) {
+        let mut cell = column;
+        while !self.drawn_exists(cell) {
+            cell = parent(cell);
+        }
+        if cell != column {
+            found.push(cell);
+            return;
+        }
+        let mut stack = vec![column];
+        while let Some(c) = stack.pop() {
+            if self.drawn_split.contains(&c) {
+                stack.extend(children(c));
+            } else {
+                found.push(c);
+            }
+        }
+    }
+
+    /// Drawn leaves inside existing node `column` that touch its `edge`.
+    fn leaves_along(&self, column: ChunkColumn, edge: FaceEdge, found: &mut Vec<ChunkColumn>) {
+        if self.drawn_split.contains(&column) {
+            for child in edge_children(column, edge) {
+                self.leaves_along(child, edge, found);
+            }
+        } else {
+            found.push(column);
+        }
+    }
+
+    fn diff(&self, old_leaves: &HashMap<ChunkColumn, ([NeighborLodRelation; 4], (i32, i32))>) -> LodChanges {
+        let keys = |column: ChunkColumn, layers: (i32, i32)| (layers.0..=layers.1).map(move |l| column.chunk(l));
+        let mut changes = LodChanges::default();
+        for (&column, &(relations, layers)) in &self.leaves {
+            match old_leaves.get(&column) {
+                None => changes.added.extend(keys(column, layers)),
+                Some(&(old, _)) if old != relations => changes.neighbours_changed.extend(keys(column, layers)),
+                Some(_) => {}
+            }
+        }
+        for (&column, &(_, layers)) in old_leaves {
+            if !self.leaves.contains_key(&column) {
+                changes.removed.extend(keys(column, layers));
+            }
+        }
+        changes.added.sort_unstable();
+        changes.removed.sort_unstable();
+        changes.neighbours_changed.sort_unstable();
+        changes
+    }
+
+    fn cull(&mut self, camera: &Camera) {
+        let fov = self.settings.fov_y_degrees;
+        let occluder = self.min_surface_radius;
+        let mut visible: Vec<ChunkColumn> = self
+            .leaves
+            .keys()
+            .filter(|c| {
+                let bounds = &self.nodes[c].bounds;
+                !bounds.behind_horizon(camera.position, occluder) && !bounds.outside_frustum(camera, fov)
+            })
+            .copied()
+            .collect();
+        visible.sort_unstable();
+        let mut histogram = vec![0; usize::from(self.layout.max_lod()) + 1];
+        for c in self.leaves.keys() {
+            histogram[usize::from(c.lod)] += 1;
+        }
+        self.stats.leaves = self.leaves.len();
+        self.stats.visible_leaves = visible.len();
+        self.stats.lod_histogram = histogram;
+        self.visible = visible;
+    }
+}
+
+/// The four children of `column`.
+#[must_use]
+pub fn children(column: ChunkColumn) -> [ChunkColumn; 4] {
+    let (x, y, lod) = (column.x * 2, column.y * 2, column.lod - 1);
+    [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(dx, dy)| ChunkColumn { face: column.face, lod, x: x + dx, y: y + dy })
+}
+
+/// The parent of a non-root `column`.
+#[must_use]
+pub fn parent(column: ChunkColumn) -> ChunkColumn {
+    ChunkColumn { face: column.face, lod: column.lod + 1, x: column.x / 2, y: column.y / 2 }
+}
+
+/// The two children of `column` along its `edge`.
+fn edge_children(column: ChunkColumn, edge: FaceEdge) -> [ChunkColumn; 2] {
+    let [c00, c10, c01, c11] = children(column);
+    match edge {
+        FaceEdge::NegU => [c00, c01],
+        FaceEdge::PosU => [c10, c11],
+        FaceEdge::NegV => [c00, c10],
+        FaceEdge::PosV => [c01, c11],
+    }
+}
