@@ -145,6 +145,12 @@ impl LodTree {
         &self.settings
     }
 
+    /// The planet's coarsest LOD (the face roots).
+    #[must_use]
+    pub fn max_lod(&self) -> u8 {
+        self.layout.max_lod()
+    }
+
     /// Radius below which the planet is solid everywhere.
     #[must_use]
     pub fn min_surface_radius(&self) -> f64 {

@@ -53,7 +53,7 @@ mod pipeline;
 mod seams;
 
 pub use error::MeshError;
-pub use mesh::{ChunkMesh, MeshVertex};
+pub use mesh::{ChunkMesh, MeshVertex, OutlineEdge};
 pub use mesher::ChunkMesher;
 pub use nebula_lod::{ChunkLodContext, NeighborLodRelation};
 pub use nebula_math::{DVec3, FaceDirection, Vec3};

@@ -40,6 +40,20 @@ impl MeshVertex {
     pub const CONSTRAINED: u16 = 2;
 }
 
+/// One edge of a mesh's outline on a side (see [`ChunkMesh::outline`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutlineEdge {
+    /// Its end points as canonical lattice points, in the surface's winding
+    /// order.
+    pub lattice: [LatticePoint; 2],
+    /// Their f64 world positions (after constraining).
+    pub world: [DVec3; 2],
+    /// Whether the edge lies on the chunk's top or bottom plane, where it is
+    /// shared with the chunk above or below rather than with the neighbour
+    /// on this side.
+    pub on_radial_boundary: bool,
+}
+
 /// Where a vertex came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum VertexSource {
@@ -275,6 +289,28 @@ impl ChunkMesh {
             .collect();
         edges.sort_unstable_by_key(|&(key, _)| key);
         edges.into_iter().map(|(_, edge)| edge).collect()
+    }
+
+    /// The outline on `side`: the surface edges on the chunk's boundary
+    /// plane that only one surface triangle of this chunk uses (where the
+    /// surface leaves the chunk), radial edges left out, as lattice points
+    /// and world positions. A same-LOD neighbour's outline on the facing
+    /// side is the same set of edges.
+    #[must_use]
+    pub fn outline(&self, side: FaceDirection) -> Vec<OutlineEdge> {
+        self.outline_edges(side)
+            .into_iter()
+            .filter_map(|(a, b)| {
+                let (a, b) = (a as usize, b as usize);
+                let (la, lb) = (self.local(a)?, self.local(b)?);
+                let top = CHUNK_SIZE as i32;
+                Some(OutlineEdge {
+                    lattice: [self.lattice_point(a)?, self.lattice_point(b)?],
+                    world: [self.world[a], self.world[b]],
+                    on_radial_boundary: (la[1] == 0 && lb[1] == 0) || (la[1] == top && lb[1] == top),
+                })
+            })
+            .collect()
     }
 
     /// The vertices of the outline on `side` (see
