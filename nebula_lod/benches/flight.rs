@@ -2,12 +2,14 @@
 //! frames per second: incremental update vs. full traversal in the same run.
 //!
 //! Segments (each timed as 60 consecutive frames from the same prepared
-//! tree, reported per frame):
+//! tree; divide by 60 for a frame):
 //! - `orbit`: 2,000 km up, circling at 7 km/s;
 //! - `descent`: from 20 km down at 500 m/s;
 //! - `low_flight`: 300 m/s level flight 150 m above the ground.
 //!
-//! Settings are the defaults (1 px error threshold, 1080 lines, 60°).
+//! `cull` times horizon + frustum culling of the same 60 frames on the tree
+//! of the first frame. Settings are the defaults (1 px error threshold,
+//! 1080 lines, 60°).
 //! Run: `cargo bench -p nebula_lod`.
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
@@ -58,7 +60,8 @@ fn flight(c: &mut Criterion) {
     for (name, cameras) in &segments {
         let mut tree = LodTree::new(&planet, settings).expect("valid settings");
         tree.update(&planet, &cameras[0]).expect("valid camera");
-        let stats = tree.stats().clone();
+        tree.cull(&cameras[0]).expect("valid camera");
+        let stats = tree.stats();
         eprintln!(
             "{name}: {} leaves, {} in view, max neighbour LOD difference {}, LODs {:?}",
             stats.leaves, stats.visible_leaves, stats.max_neighbor_lod_diff, stats.lod_histogram
@@ -82,6 +85,14 @@ fn flight(c: &mut Criterion) {
                 );
             });
         }
+        // Culling alone (once per frame in a renderer), on the same tree.
+        group.bench_function(BenchmarkId::new(*name, "cull"), |b| {
+            b.iter(|| {
+                for camera in &cameras[1..] {
+                    tree.cull(camera).expect("valid camera");
+                }
+            });
+        });
     }
     group.finish();
 }

@@ -16,7 +16,8 @@
 //! Choices:
 //! - **View-independent tree, view-dependent drawing**: refinement depends
 //!   on distance only, so turning the camera never re-meshes; horizon and
-//!   frustum culling pick the leaves to draw ([`LodTree::visible_chunks`]).
+//!   frustum culling pick the leaves to draw ([`LodTree::cull`], a walk
+//!   from the roots that skips hidden subtrees).
 //!   A culled leaf stays in the tree, so a visible neighbour's seam is never
 //!   computed against a missing chunk.
 //! - **Incremental by distance margins**: a node's decision can only flip
@@ -37,6 +38,7 @@
 //! let camera = Camera { position: eye, forward: -eye, up: DVec3::X, aspect: 1.5 };
 //! let changes = tree.update(&planet, &camera)?;
 //! assert!(!changes.added.is_empty());
+//! tree.cull(&camera)?;
 //! // The finest leaves are right under the camera.
 //! let finest = tree.leaves().into_iter().min_by_key(|c| c.lod).unwrap();
 //! assert_eq!(finest.face, nebula_voxel::CubeFace::PosZ);

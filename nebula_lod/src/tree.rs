@@ -56,7 +56,7 @@ pub struct LodStats {
     pub nodes_evaluated: usize,
     /// Leaves in the tree.
     pub leaves: usize,
-    /// Leaves in view (not behind the horizon, not outside the frustum).
+    /// Leaves in view at the last [`LodTree::cull`].
     pub visible_leaves: usize,
     /// Leaves per LOD (index = LOD).
     pub lod_histogram: Vec<usize>,
@@ -157,10 +157,22 @@ impl LodTree {
         self.min_surface_radius
     }
 
-    /// Figures of the last update.
+    /// Figures of the last update (and cull). The largest neighbour LOD
+    /// difference is counted on the call, over all leaves.
     #[must_use]
-    pub fn stats(&self) -> &LodStats {
-        &self.stats
+    pub fn stats(&self) -> LodStats {
+        let mut stats = self.stats.clone();
+        stats.max_neighbor_lod_diff = self
+            .leaves
+            .values()
+            .flat_map(|(relations, _)| relations)
+            .filter_map(|r| match r {
+                NeighborLodRelation::HigherThanNeighbor { lod_diff } => Some(*lod_diff),
+                _ => None,
+            })
+            .max()
+            .unwrap_or(0);
+        stats
     }
 
     /// Bounds of a node of the tree, if it exists.
@@ -212,13 +224,13 @@ impl LodTree {
         Some((along % count, count))
     }
 
-    /// The leaf chunks in view after the last update.
+    /// The leaf chunks in view at the last [`LodTree::cull`].
     #[must_use]
     pub fn visible_chunks(&self) -> Vec<ChunkKey> {
         self.visible.iter().flat_map(|&c| self.layers(c).into_iter().flatten().map(move |l| c.chunk(l))).collect()
     }
 
-    /// The leaf columns in view after the last update.
+    /// The leaf columns in view at the last [`LodTree::cull`].
     #[must_use]
     pub fn visible_leaves(&self) -> &[ChunkColumn] {
         &self.visible
@@ -264,7 +276,6 @@ impl LodTree {
             self.odometer += last.distance(eye);
         }
         self.last_camera = Some(eye);
-        let old_leaves = self.leaves.clone();
         let mut changed = BTreeSet::new();
         let mut evaluated = 0;
         if full {
@@ -291,12 +302,84 @@ impl LodTree {
             }
         }
         self.stats.nodes_evaluated = evaluated;
-        if !changed.is_empty() || self.leaves.is_empty() || full {
-            self.rebuild_drawn_tree(source, &changed, full)?;
+        let restricted = self.settings.balance == BalanceMode::Restricted;
+        if restricted || full || self.leaves.is_empty() {
+            // Whole-tree path: the balance filter may move any leaf.
+            let old_leaves = self.leaves.clone();
+            if !changed.is_empty() || self.leaves.is_empty() || full {
+                self.rebuild_drawn_tree(source, &changed, full)?;
+            }
+            let changes = self.diff(&old_leaves);
+            self.recount();
+            Ok(changes)
+        } else {
+            Ok(self.apply_changes(&changed))
         }
-        let changes = self.diff(&old_leaves);
-        self.cull(camera);
-        Ok(changes)
+    }
+
+    /// Incremental bookkeeping after an unrestricted update: only the
+    /// columns that split or merged and the leaves around them are touched.
+    fn apply_changes(&mut self, changed: &BTreeSet<ChunkColumn>) -> LodChanges {
+        let keys = |column: ChunkColumn, layers: (i32, i32)| (layers.0..=layers.1).map(move |l| column.chunk(l));
+        let mut changes = LodChanges::default();
+        let mut added = Vec::new();
+        for &column in changed {
+            let is_leaf =
+                self.nodes.contains_key(&column) && !self.split.contains(&column) && self.drawn_exists(column);
+            match (is_leaf, self.leaves.get(&column)) {
+                (true, None) => added.push(column),
+                (false, Some(&(_, layers))) => {
+                    self.leaves.remove(&column);
+                    self.stats.lod_histogram[usize::from(column.lod)] -= 1;
+                    changes.removed.extend(keys(column, layers));
+                }
+                _ => {}
+            }
+        }
+        for &column in &added {
+            let layers = self.nodes[&column].layers;
+            self.leaves.insert(column, ([NeighborLodRelation::Same; 4], layers));
+            self.stats.lod_histogram[usize::from(column.lod)] += 1;
+            changes.added.extend(keys(column, layers));
+        }
+        let mut dirty = BTreeSet::new();
+        for &column in changed {
+            dirty.extend(self.leaves_touching(column));
+        }
+        let added: HashSet<ChunkColumn> = added.into_iter().collect();
+        for column in dirty {
+            let relations = FaceEdge::ALL.map(|edge| self.relation(column, edge));
+            if let Some(entry) = self.leaves.get_mut(&column) {
+                if entry.0 != relations && !added.contains(&column) {
+                    changes.neighbours_changed.extend(keys(column, entry.1));
+                }
+                entry.0 = relations;
+            }
+        }
+        self.stats.leaves = self.leaves.len();
+        changes.added.sort_unstable();
+        changes.removed.sort_unstable();
+        changes.neighbours_changed.sort_unstable();
+        changes
+    }
+
+    /// Leaf count and LOD histogram from scratch.
+    fn recount(&mut self) {
+        let mut histogram = vec![0; usize::from(self.layout.max_lod()) + 1];
+        for c in self.leaves.keys() {
+            histogram[usize::from(c.lod)] += 1;
+        }
+        self.stats.lod_histogram = histogram;
+        self.stats.leaves = self.leaves.len();
+    }
+
+    /// Whether `column` is split in the drawn tree.
+    fn drawn_is_split(&self, column: &ChunkColumn) -> bool {
+        if self.settings.balance == BalanceMode::Restricted {
+            self.drawn_split.contains(column)
+        } else {
+            self.split.contains(column)
+        }
     }
 
     /// Applies the split/merge rule to `column` and schedules its next
@@ -337,6 +420,7 @@ impl LodTree {
             }
             self.split.insert(column);
             changed.insert(column);
+            changed.extend(children);
             self.schedule(column, margin);
             for child in children {
                 self.evaluate(source, child, eye, changed, evaluated, recurse)?;
@@ -402,10 +486,10 @@ impl LodTree {
         changed: &BTreeSet<ChunkColumn>,
         full: bool,
     ) -> Result<(), LodError> {
-        self.drawn_split.clone_from(&self.split);
         self.stats.balance_passes = 0;
         let restricted = self.settings.balance == BalanceMode::Restricted;
         if restricted {
+            self.drawn_split.clone_from(&self.split);
             loop {
                 let leaves = self.drawn_leaves();
                 let to_split: Vec<ChunkColumn> =
@@ -452,16 +536,6 @@ impl LodTree {
             let layers = self.nodes[&column].layers;
             self.leaves.insert(column, (relations, layers));
         }
-        self.stats.max_neighbor_lod_diff = self
-            .leaves
-            .values()
-            .flat_map(|(relations, _)| relations)
-            .filter_map(|r| match r {
-                NeighborLodRelation::HigherThanNeighbor { lod_diff } => Some(*lod_diff),
-                _ => None,
-            })
-            .max()
-            .unwrap_or(0);
         Ok(())
     }
 
@@ -471,7 +545,7 @@ impl LodTree {
         let mut stack: Vec<ChunkColumn> =
             CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
         while let Some(column) = stack.pop() {
-            if self.drawn_split.contains(&column) {
+            if self.drawn_is_split(&column) {
                 stack.extend(children(column));
             } else {
                 leaves.insert(column);
@@ -510,7 +584,7 @@ impl LodTree {
         let mut node = column;
         while node.lod < self.layout.max_lod() {
             node = parent(node);
-            if !self.drawn_split.contains(&node) {
+            if !self.drawn_is_split(&node) {
                 return false;
             }
         }
@@ -520,7 +594,7 @@ impl LodTree {
     /// The relation of drawn leaf `column` to what lies across `edge`.
     fn relation(&self, column: ChunkColumn, edge: FaceEdge) -> NeighborLodRelation {
         let Some(across) = self.same_lod_neighbor(column, edge) else { return NeighborLodRelation::Same };
-        if self.drawn_split.contains(&across) {
+        if self.drawn_is_split(&across) {
             return NeighborLodRelation::LowerThanNeighbor;
         }
         // Walk up to the leaf that covers the cell.
@@ -567,7 +641,7 @@ impl LodTree {
         }
         let mut stack = vec![column];
         while let Some(c) = stack.pop() {
-            if self.drawn_split.contains(&c) {
+            if self.drawn_is_split(&c) {
                 stack.extend(children(c));
             } else {
                 found.push(c);
@@ -577,7 +651,7 @@ impl LodTree {
 
     /// Drawn leaves inside existing node `column` that touch its `edge`.
     fn leaves_along(&self, column: ChunkColumn, edge: FaceEdge, found: &mut Vec<ChunkColumn>) {
-        if self.drawn_split.contains(&column) {
+        if self.drawn_is_split(&column) {
             for child in edge_children(column, edge) {
                 self.leaves_along(child, edge, found);
             }
@@ -607,27 +681,35 @@ impl LodTree {
         changes
     }
 
-    fn cull(&mut self, camera: &Camera) {
+    /// Picks the leaves in view of `camera` (not behind the horizon of the
+    /// lowest surface, not outside the frustum), walking the tree from the
+    /// roots so that hidden subtrees are skipped whole. Read the result
+    /// with [`LodTree::visible_leaves`] and [`LodTree::visible_chunks`].
+    ///
+    /// # Errors
+    /// [`LodError::BadCamera`] for NaN, infinite or degenerate camera data.
+    pub fn cull(&mut self, camera: &Camera) -> Result<(), LodError> {
+        camera.check()?;
         let fov = self.settings.fov_y_degrees;
         let occluder = self.min_surface_radius;
-        let mut visible: Vec<ChunkColumn> = self
-            .leaves
-            .keys()
-            .filter(|c| {
-                let bounds = &self.nodes[c].bounds;
-                !bounds.behind_horizon(camera.position, occluder) && !bounds.outside_frustum(camera, fov)
-            })
-            .copied()
-            .collect();
-        visible.sort_unstable();
-        let mut histogram = vec![0; usize::from(self.layout.max_lod()) + 1];
-        for c in self.leaves.keys() {
-            histogram[usize::from(c.lod)] += 1;
+        let mut visible = Vec::new();
+        let mut stack: Vec<ChunkColumn> =
+            CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
+        while let Some(column) = stack.pop() {
+            let Some(node) = self.nodes.get(&column) else { continue };
+            if node.bounds.behind_horizon(camera.position, occluder) || node.bounds.outside_frustum(camera, fov) {
+                continue;
+            }
+            if self.drawn_is_split(&column) {
+                stack.extend(children(column));
+            } else {
+                visible.push(column);
+            }
         }
-        self.stats.leaves = self.leaves.len();
+        visible.sort_unstable();
         self.stats.visible_leaves = visible.len();
-        self.stats.lod_histogram = histogram;
         self.visible = visible;
+        Ok(())
     }
 }
 

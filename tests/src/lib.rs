@@ -92,11 +92,12 @@ pub fn assemble<S: VoxelSource + ?Sized>(
 ) -> Result<PlanetView, AssemblyError> {
     let mut tree = LodTree::new(source, settings).map_err(AssemblyError::Lod)?;
     tree.update(source, camera).map_err(AssemblyError::Lod)?;
+    tree.cull(camera).map_err(AssemblyError::Lod)?;
     view_of_tree(source, &tree, options)
 }
 
-/// Meshes the visible chunks of `tree` (for a tree the caller updates along
-/// a path).
+/// Meshes the chunks of `tree` in view at its last
+/// [`LodTree::cull`] (for a tree the caller updates along a path).
 ///
 /// # Errors
 /// [`AssemblyError::Mesh`] if a chunk cannot be meshed.
@@ -122,7 +123,7 @@ pub fn view_of_tree<S: VoxelSource + ?Sized>(
             .fold(tree.min_surface_radius(), |low, r| if low == tree.min_surface_radius() { r } else { low.min(r) }),
         fov_y_degrees: tree.settings().fov_y_degrees,
         max_lod: tree.max_lod(),
-        stats: Some(tree.stats().clone()),
+        stats: Some(tree.stats()),
     })
 }
 

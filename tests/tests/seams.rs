@@ -207,6 +207,7 @@ fn every_frame_of_a_camera_path_is_closed() {
         let ahead = above(&source, (dir + heading * 0.03).normalize(), 0.0);
         let camera = look(eye, ahead);
         tree.update(&source, &camera).unwrap();
+        tree.cull(&camera).unwrap();
         let view = view_of_tree(&source, &tree, MeshOptions::default()).unwrap();
         check(&format!("path frame {frame}"), &view, &camera, 0.4);
     }
