@@ -50,11 +50,13 @@ fn check(name: &str, view: &PlanetView, camera: &Camera, min_planet_fraction: f6
     let seconds = start.elapsed().as_secs_f64();
     let topology = boundary_topology(view);
     let stats = view.stats.clone().unwrap_or_default();
+    let skirts: usize = view.meshes.iter().map(|m| m.skirt_triangle_count()).sum();
     println!(
-        "{name}: {} chunks, {} triangles, LODs {:?}, max diff {}; rays {} ({:.0}/s), on planet {}, cracks {}; \
-         pairs {} ({} across LODs), t-junctions {}, unmatched {}",
+        "{name}: {} chunks, {} triangles ({:.1} % skirts), LODs {:?}, max diff {}; rays {} ({:.0}/s), on planet {}, \
+         cracks {}; pairs {} ({} across LODs), t-junctions {}, unmatched {}",
         view.meshes.len(),
         report.triangles,
+        100.0 * skirts as f64 / report.triangles.max(1) as f64,
         stats.lod_histogram,
         stats.max_neighbor_lod_diff,
         report.rays,
@@ -70,6 +72,10 @@ fn check(name: &str, view: &PlanetView, camera: &Camera, min_planet_fraction: f6
     assert!(report.rays_on_planet as f64 >= min_planet_fraction * report.rays as f64, "{name}: planet not in view");
     assert_eq!(topology.t_junctions, 0, "{name}");
     assert_eq!(topology.unmatched_edges, 0, "{name}");
+    if view.stats.is_some() {
+        // Seed 000's promise for a real view: skirts are at most 5 %.
+        assert!(skirts as f64 <= 0.05 * report.triangles as f64, "{name}: too many skirt triangles");
+    }
 }
 
 #[test]
