@@ -1,9 +1,484 @@
-//! `nebula-demo`: renders a Nebula planet (windowed or headless).
+//! `nebula-demo`: fly around a seamless voxel planet (a window), or render it
+//! headless to PNG with a JSON report.
+//!
+//! Keys: W/A/S/D move, Q/E down/up, mouse (hold the left button) looks,
+//! Shift ×10 speed, O jumps between orbit and the surface, 1–4 debug views
+//! (shaded, LOD colours, skirts, morph factor), Esc quits. Speed scales with
+//! altitude.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::{Parser, Subcommand};
+use nebula_demo::app::{PlanetApp, View, camera};
+use nebula_demo::gpu::{DebugView, Gpu};
+use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
+use nebula_demo::planet_settings;
+use nebula_lod::LodSettings;
+use nebula_math::DVec3;
+use nebula_voxel::{ProceduralPlanet, VoxelSource};
+use winit::application::ApplicationHandler;
+use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+/// Render a Nebula planet.
+#[derive(Parser, Debug)]
+#[command(name = "nebula-demo", version, about)]
+struct Args {
+    #[command(subcommand)]
+    command: Option<Command>,
+    /// Render offscreen instead of opening a window.
+    #[arg(long)]
+    headless: bool,
+    /// Write the final frame to this PNG (headless).
+    #[arg(long, value_name = "PATH")]
+    screenshot: Option<PathBuf>,
+    /// Frames to run before the screenshot (then it waits for meshing).
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    frames: u32,
+    /// Camera position in metres, planet centre at the origin.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    camera_pos: Option<DVec3>,
+    /// Point to look at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    look_at: Option<DVec3>,
+    /// Up direction (default: radial up at the camera).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 60.0)]
+    fov: f64,
+    /// Image or window size.
+    #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "1280x720")]
+    size: (u32, u32),
+    /// Clear colour (0–255 each); when given, nothing is drawn over it and
+    /// crack pixels are counted.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
+    background: Option<[u8; 3]>,
+    /// Planet seed.
+    #[arg(long, default_value_t = 7)]
+    seed: u32,
+    /// Planet radius in metres.
+    #[arg(long, value_name = "M", default_value_t = 2_000.0)]
+    radius: f64,
+    /// Voxel size in metres.
+    #[arg(long, value_name = "M", default_value_t = 1.5)]
+    voxel_size: f64,
+    /// Screen-space error threshold in pixels.
+    #[arg(long, value_name = "PX", default_value_t = 1.0)]
+    sse: f64,
+    /// Debug view.
+    #[arg(long, value_enum, default_value_t = DebugView::Shaded)]
+    view: DebugView,
+    /// Write the frame's figures as JSON here.
+    #[arg(long, value_name = "PATH")]
+    report: Option<PathBuf>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Print the planet's parameters.
+    Info {
+        /// As JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn parse_vec3(text: &str) -> Result<DVec3, String> {
+    let parts: Vec<f64> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("'{p}' is not a number: {e}")))
+        .collect::<Result<_, _>>()?;
+    match parts.as_slice() {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(DVec3::new(*x, *y, *z)),
+        [_, _, _] => Err(format!("'{text}' has a NaN or infinite component")),
+        _ => Err(format!("expected X,Y,Z, got '{text}'")),
+    }
+}
+
+fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("expected WxH, got '{text}'"))?;
+    let w: u32 = w.trim().parse().map_err(|e| format!("bad width '{w}': {e}"))?;
+    let h: u32 = h.trim().parse().map_err(|e| format!("bad height '{h}': {e}"))?;
+    if w == 0 || h == 0 || w > 16_384 || h > 16_384 {
+        return Err(format!("size must be between 1x1 and 16384x16384, got {w}x{h}"));
+    }
+    Ok((w, h))
+}
+
+fn parse_rgb(text: &str) -> Result<[u8; 3], String> {
+    let parts: Vec<u8> = text
+        .split(',')
+        .map(|p| p.trim().parse::<u8>().map_err(|e| format!("'{p}' is not 0–255: {e}")))
+        .collect::<Result<_, _>>()?;
+    <[u8; 3]>::try_from(parts).map_err(|_| format!("expected R,G,B, got '{text}'"))
+}
 
 fn main() -> std::process::ExitCode {
-    eprintln!(
-        "nebula-demo: not yet — the renderer lands with its own issue. \
-         The math and voxel crates are ready: `cargo test --workspace`."
-    );
-    std::process::ExitCode::from(2)
+    let args = Args::parse();
+    match run(args) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("nebula-demo: {error:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    for (name, value) in
+        [("--fov", args.fov), ("--radius", args.radius), ("--voxel-size", args.voxel_size), ("--sse", args.sse)]
+    {
+        if !value.is_finite() || value <= 0.0 {
+            bail!("{name} must be a positive number, got {value}");
+        }
+    }
+    let settings = planet_settings(args.seed, args.radius, args.voxel_size);
+    let planet = ProceduralPlanet::new(settings.clone()).context("bad planet parameters")?;
+    if let Some(Command::Info { json }) = args.command {
+        return info(&planet, json);
+    }
+    let default_eye = DVec3::new(0.35, 0.55, 0.76).normalize() * args.radius * 2.6;
+    let shot = Shot {
+        position: args.camera_pos.unwrap_or(default_eye),
+        look_at: args.look_at.unwrap_or(DVec3::ZERO),
+        up: args.up,
+        fov_y_degrees: args.fov,
+        size: args.size,
+        background: args.background,
+        sse_px: args.sse,
+        frames: args.frames,
+        view: args.view,
+    };
+    shot_view(&shot)?;
+    if args.headless {
+        return headless(planet, &shot, &args);
+    }
+    match EventLoop::new() {
+        Ok(event_loop) => windowed(event_loop, planet, shot),
+        Err(error) => {
+            eprintln!("nebula-demo: no display ({error}); rendering headless instead");
+            headless(planet, &shot, &args)
+        }
+    }
+}
+
+fn info(planet: &ProceduralPlanet, json: bool) -> anyhow::Result<()> {
+    let layout = planet.layout();
+    let bounds = planet.surface_bounds(nebula_voxel::ChunkColumn {
+        face: nebula_voxel::CubeFace::PosX,
+        lod: layout.max_lod(),
+        x: 0,
+        y: 0,
+    })?;
+    let s = planet.settings();
+    let min = s.radius - s.amplitude - s.detail_amplitude;
+    let max = s.radius + s.amplitude + s.detail_amplitude;
+    let value = serde_json::json!({
+        "radius": s.radius,
+        "voxel_size": planet.voxel_size(),
+        "min_surface_radius": min.max(bounds.min_radius.min(min)),
+        "max_surface_radius": max,
+        "max_lod": layout.max_lod(),
+        "seed": s.seed,
+    });
+    if json {
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!(
+            "radius {} m, voxel {:.3} m, surface between {} and {} m, LODs 0..={}, seed {}",
+            s.radius,
+            planet.voxel_size(),
+            value["min_surface_radius"],
+            max,
+            layout.max_lod(),
+            s.seed
+        );
+    }
+    Ok(())
+}
+
+fn lod_settings(shot: &Shot) -> LodSettings {
+    LodSettings {
+        threshold_px: shot.sse_px,
+        screen_height_px: f64::from(shot.size.1),
+        fov_y_degrees: shot.fov_y_degrees,
+        ..LodSettings::default()
+    }
+}
+
+fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Result<()> {
+    let gpu = nebula_demo::headless::headless_gpu()?;
+    let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    if args.screenshot.is_none() && args.camera_pos.is_none() {
+        // No camera given: an orbit-to-surface sequence.
+        let dir = DVec3::new(0.35, 0.55, 0.76).normalize();
+        let dir_ahead = DVec3::new(0.45, 0.5, 0.74).normalize();
+        let radius = args.radius;
+        let folder = PathBuf::from("nebula-frames");
+        for (n, height) in [2.0, 0.6, 0.15, 0.03, 0.008].iter().enumerate() {
+            let ground = radius + app_ground(&app, dir);
+            let eye = dir * (ground + radius * height);
+            let target = dir_ahead * app_ground_radius(&app, dir_ahead);
+            let look = if *height > 0.5 { DVec3::ZERO } else { target };
+            let frame_shot = Shot { position: eye, look_at: look, ..shot.clone() };
+            let picture = render_app(&mut app, &frame_shot)?;
+            let path = folder.join(format!("frame-{n}.png"));
+            write_png(&path, &picture.rgba, picture.size)?;
+            println!(
+                "wrote {} ({} chunks, {} triangles)",
+                path.display(),
+                picture.figures.frame.chunks,
+                picture.figures.frame.triangles
+            );
+        }
+        return Ok(());
+    }
+    let picture = render_app(&mut app, shot)?;
+    let path = args.screenshot.clone().unwrap_or_else(|| PathBuf::from("nebula.png"));
+    write_png(&path, &picture.rgba, picture.size)?;
+    let report = report_json(&picture.figures, &picture.adapter);
+    println!("wrote {} ({})", path.display(), report);
+    if let Some(report_path) = &args.report {
+        std::fs::write(report_path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", report_path.display()))?;
+    }
+    Ok(())
+}
+
+fn app_ground(app: &PlanetApp, dir: DVec3) -> f64 {
+    app_ground_radius(app, dir) - app.world.resource::<nebula_demo::app::Planet>().0.settings().radius
+}
+
+fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
+    let planet = &app.world.resource::<nebula_demo::app::Planet>().0;
+    planet.settings().radius + planet.height_at(dir.normalize())
+}
+
+/// The windowed demo.
+struct Windowed {
+    planet: Option<ProceduralPlanet>,
+    shot: Shot,
+    state: Option<WindowState>,
+    eye: DVec3,
+    yaw: f64,
+    pitch: f64,
+    keys: std::collections::HashSet<KeyCode>,
+    looking: bool,
+    view: DebugView,
+    last: Instant,
+    frames: u32,
+    frame_clock: Instant,
+}
+
+struct WindowState {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    app: PlanetApp,
+}
+
+fn windowed(event_loop: EventLoop<()>, planet: ProceduralPlanet, shot: Shot) -> anyhow::Result<()> {
+    let forward = (shot.look_at - shot.position).normalize();
+    let mut demo = Windowed {
+        planet: Some(planet),
+        eye: shot.position,
+        yaw: 0.0,
+        pitch: 0.0,
+        shot,
+        state: None,
+        keys: Default::default(),
+        looking: false,
+        view: DebugView::Shaded,
+        last: Instant::now(),
+        frames: 0,
+        frame_clock: Instant::now(),
+    };
+    demo.set_forward(forward);
+    event_loop.run_app(&mut demo)?;
+    Ok(())
+}
+
+impl Windowed {
+    /// The view basis at the eye: radial up, yaw around it, pitch above the
+    /// local horizon.
+    fn basis(&self) -> (DVec3, DVec3) {
+        let up = self.eye.normalize();
+        let reference = if up.cross(DVec3::Z).length() > 1e-3 { DVec3::Z } else { DVec3::X };
+        let north = (reference - up * reference.dot(up)).normalize();
+        let east = north.cross(up);
+        let heading = north * self.yaw.cos() + east * self.yaw.sin();
+        let forward = heading * self.pitch.cos() + up * self.pitch.sin();
+        (forward, up)
+    }
+
+    fn set_forward(&mut self, forward: DVec3) {
+        let up = self.eye.normalize();
+        let reference = if up.cross(DVec3::Z).length() > 1e-3 { DVec3::Z } else { DVec3::X };
+        let north = (reference - up * reference.dot(up)).normalize();
+        let east = north.cross(up);
+        self.pitch = forward.dot(up).clamp(-1.0, 1.0).asin().clamp(-1.55, 1.55);
+        self.yaw = forward.dot(east).atan2(forward.dot(north));
+    }
+
+    fn frame(&mut self) -> anyhow::Result<()> {
+        let dt = self.last.elapsed().as_secs_f64().min(0.1);
+        self.last = Instant::now();
+        let (forward, up) = self.basis();
+        let Some(state) = self.state.as_mut() else { return Ok(()) };
+        let min_radius = state.app.min_surface_radius();
+        let altitude = (self.eye.length() - min_radius).max(1.0);
+        let fast = self.keys.contains(&KeyCode::ShiftLeft);
+        let speed = altitude * 0.6 * if fast { 10.0 } else { 1.0 };
+        let right = forward.cross(up).normalize();
+        let mut motion = DVec3::ZERO;
+        for (key, dir) in [
+            (KeyCode::KeyW, forward),
+            (KeyCode::KeyS, -forward),
+            (KeyCode::KeyD, right),
+            (KeyCode::KeyA, -right),
+            (KeyCode::KeyE, up),
+            (KeyCode::KeyQ, -up),
+        ] {
+            if self.keys.contains(&key) {
+                motion += dir;
+            }
+        }
+        let next = self.eye + motion.normalize_or_zero() * speed * dt;
+        if next.length() > min_radius + 0.5 {
+            self.eye = next;
+        }
+        let size = (state.config.width, state.config.height);
+        state.app.set_view(View {
+            camera: camera(self.eye, forward, up, f64::from(size.0) / f64::from(size.1.max(1))),
+            fov_y_degrees: self.shot.fov_y_degrees,
+        });
+        state.app.step();
+        let texture = match state.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                state.surface.configure(&state.app.gpu().device, &state.config);
+                return Ok(());
+            }
+            _ => return Ok(()),
+        };
+        let view = texture.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        state.app.draw(&view, size, self.shot.background.unwrap_or([20, 26, 38]), self.view);
+        state.app.gpu().queue.present(texture);
+        self.frames += 1;
+        if self.frame_clock.elapsed().as_secs_f64() > 0.5 {
+            let f = state.app.frame_figures();
+            let ms = self.frame_clock.elapsed().as_secs_f64() * 1e3 / f64::from(self.frames.max(1));
+            let lods: Vec<usize> =
+                f.lod_histogram.iter().enumerate().filter(|(_, n)| **n > 0).map(|(l, _)| l).collect();
+            state.window.set_title(&format!(
+                "Nebula — {ms:.1} ms/frame, {} chunks, {} tris, queue {}, LOD {:?}..{:?}, alt {:.0} m, {:?}",
+                f.chunks,
+                f.triangles,
+                f.jobs_in_flight,
+                lods.first(),
+                lods.last(),
+                altitude,
+                self.view
+            ));
+            self.frames = 0;
+            self.frame_clock = Instant::now();
+        }
+        state.window.request_redraw();
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for Windowed {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.state.is_some() {
+            return;
+        }
+        let Some(planet) = self.planet.take() else { return };
+        let result = (|| -> anyhow::Result<WindowState> {
+            let attributes = Window::default_attributes()
+                .with_title("Nebula")
+                .with_inner_size(winit::dpi::PhysicalSize::new(self.shot.size.0, self.shot.size.1));
+            let window = Arc::new(event_loop.create_window(attributes)?);
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+            let surface = instance.create_surface(window.clone())?;
+            let gpu = Gpu::new(&instance, Some(&surface))?;
+            let size = window.inner_size();
+            let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
+            surface.configure(&gpu.device, &config);
+            let app = PlanetApp::new(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
+            Ok(WindowState { window, surface, config, app })
+        })();
+        match result {
+            Ok(state) => {
+                state.window.request_redraw();
+                self.state = Some(state);
+            }
+            Err(error) => {
+                eprintln!("nebula-demo: could not open the window: {error:#}");
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(state) = self.state.as_mut() {
+                    state.config.width = size.width.max(1);
+                    state.config.height = size.height.max(1);
+                    state.surface.configure(&state.app.gpu().device, &state.config);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else { return };
+                if event.state == ElementState::Pressed {
+                    self.keys.insert(code);
+                    match code {
+                        KeyCode::Escape => event_loop.exit(),
+                        KeyCode::Digit1 => self.view = DebugView::Shaded,
+                        KeyCode::Digit2 => self.view = DebugView::Lod,
+                        KeyCode::Digit3 => self.view = DebugView::Skirts,
+                        KeyCode::Digit4 => self.view = DebugView::Morph,
+                        KeyCode::KeyO => {
+                            let r = self.eye.length();
+                            let radius = self.shot.position.length().max(r);
+                            let up = self.eye.normalize();
+                            let ground = self.state.as_ref().map_or(r, |s| app_ground_radius(&s.app, up));
+                            self.eye =
+                                if r > ground * 1.5 { up * (ground + 30.0) } else { up * radius.max(ground * 2.5) };
+                        }
+                        _ => {}
+                    }
+                } else {
+                    self.keys.remove(&code);
+                }
+            }
+            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+                self.looking = state == ElementState::Pressed;
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(error) = self.frame() {
+                    eprintln!("nebula-demo: {error:#}");
+                    event_loop.exit();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn device_event(&mut self, _event_loop: &ActiveEventLoop, _id: winit::event::DeviceId, event: DeviceEvent) {
+        if let DeviceEvent::MouseMotion { delta } = event
+            && self.looking
+        {
+            self.yaw += delta.0 * 0.003;
+            self.pitch = (self.pitch - delta.1 * 0.003).clamp(-1.55, 1.55);
+        }
+    }
 }

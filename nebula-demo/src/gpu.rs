@@ -1,0 +1,534 @@
+//! The wgpu side: device, pipeline, per-chunk buffers, drawing and read-back.
+//! Knows nothing about LOD or meshing: it draws the meshes it is given.
+
+use std::num::NonZeroU64;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{DVec3, Mat4, Vec3};
+use nebula_meshing::ChunkMesh;
+use wgpu::util::DeviceExt;
+
+/// The colour format of the offscreen target: plain UNORM, so the clear
+/// colour is stored exactly (the shader encodes sRGB itself).
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Dynamic uniform offsets must be multiples of this.
+const CHUNK_UNIFORM_STRIDE: u64 = 256;
+
+/// Errors of the GPU side.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter at all (no GPU and no software driver).
+    #[error("no GPU adapter found (install Mesa's software Vulkan driver: apt-get install mesa-vulkan-drivers): {0}")]
+    NoAdapter(String),
+    /// The adapter refused a device.
+    #[error("could not open a GPU device: {0}")]
+    Device(String),
+    /// Reading the image back failed.
+    #[error("reading the frame back failed: {0}")]
+    Readback(String),
+}
+
+/// A vertex as the GPU reads it (the layout of `nebula_meshing::MeshVertex`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuVertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    morph_target: [f32; 3],
+    packed: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameUniform {
+    view_proj: [[f32; 4]; 4],
+    sun: [f32; 4],
+    params: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct ChunkUniform {
+    offset: [f32; 4],
+    info: [f32; 4],
+    _pad: [f32; 56],
+}
+
+/// Debug views, chosen by key or flag.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum DebugView {
+    /// Materials and sun light.
+    #[default]
+    Shaded,
+    /// One colour per LOD.
+    Lod,
+    /// Skirts in magenta.
+    Skirts,
+    /// The geomorph factor (blue = coarse, red = fine).
+    Morph,
+}
+
+/// One chunk's mesh on the GPU.
+pub struct GpuMesh {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    /// f64 world position the vertices are relative to.
+    pub origin: DVec3,
+    /// The chunk's LOD.
+    pub lod: u8,
+    /// δ(L) used for geomorphing, metres.
+    pub geometric_error: f32,
+}
+
+/// What a frame draws: the view and the per-frame constants.
+pub struct FrameParams {
+    /// Camera position (f64, world).
+    pub eye: DVec3,
+    /// View direction.
+    pub forward: DVec3,
+    /// Up direction.
+    pub up: DVec3,
+    /// Vertical field of view, degrees.
+    pub fov_y_degrees: f32,
+    /// K of the SSE math (pixels per radian).
+    pub k: f32,
+    /// τ, pixels.
+    pub threshold_px: f32,
+    /// Clear colour, 0–255 per channel.
+    pub background: [u8; 3],
+    /// Which debug view.
+    pub view: DebugView,
+    /// Geomorphing on.
+    pub morph: bool,
+    /// The planet's coarsest LOD (for colours).
+    pub max_lod: u8,
+}
+
+/// Device, queue, pipeline and the per-chunk uniform ring.
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// The queue.
+    pub queue: wgpu::Queue,
+    /// What the adapter says it is.
+    pub adapter_name: String,
+    /// The colour format the pipeline draws to.
+    pub color_format: wgpu::TextureFormat,
+    adapter: wgpu::Adapter,
+    pipeline: wgpu::RenderPipeline,
+    frame_buffer: wgpu::Buffer,
+    frame_group: wgpu::BindGroup,
+    chunk_layout: wgpu::BindGroupLayout,
+    chunk_buffer: wgpu::Buffer,
+    chunk_group: wgpu::BindGroup,
+    chunk_capacity: u64,
+    depth: Option<(wgpu::Texture, wgpu::TextureView, (u32, u32))>,
+}
+
+impl Gpu {
+    /// Opens the first adapter wgpu offers (lavapipe on a machine with no
+    /// GPU), optionally one that can present to `surface`. Draws to
+    /// [`COLOR_FORMAT`] offscreen, or to the surface's first non-sRGB format.
+    ///
+    /// # Errors
+    /// [`GpuError::NoAdapter`] or [`GpuError::Device`].
+    pub fn new(instance: &wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> Result<Self, GpuError> {
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: surface,
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let adapter_name = adapter.get_info().name;
+        let color_format = match surface {
+            None => COLOR_FORMAT,
+            Some(surface) => {
+                let formats = surface.get_capabilities(&adapter).formats;
+                formats.iter().copied().find(|f| !f.is_srgb()).or(formats.first().copied()).unwrap_or(COLOR_FORMAT)
+            }
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("nebula device"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("nebula shader"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
+        });
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: NonZeroU64::new(size_of::<FrameUniform>() as u64),
+                },
+                count: None,
+            }],
+        });
+        let chunk_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("chunk layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: NonZeroU64::new(32),
+                },
+                count: None,
+            }],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("nebula pipeline layout"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&chunk_layout)],
+            immediate_size: 0,
+        });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Uint32];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("nebula terrain pipeline"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<GpuVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            // Reverse Z with an infinite far plane: holds from 0.1 m to a
+            // planet's diameter.
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: color_format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame uniform"),
+            size: size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame bind group"),
+            layout: &frame_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
+        });
+        let (chunk_buffer, chunk_group) = chunk_ring(&device, &chunk_layout, 256);
+        Ok(Self {
+            device,
+            queue,
+            adapter_name,
+            color_format,
+            adapter,
+            pipeline,
+            frame_buffer,
+            frame_group,
+            chunk_layout,
+            chunk_buffer,
+            chunk_group,
+            chunk_capacity: 256,
+            depth: None,
+        })
+    }
+
+    /// A configuration for presenting to `surface` at `size`.
+    #[must_use]
+    pub fn surface_config(&self, surface: &wgpu::Surface<'_>, size: (u32, u32)) -> Option<wgpu::SurfaceConfiguration> {
+        let mut config = surface.get_default_config(&self.adapter, size.0.max(1), size.1.max(1))?;
+        config.format = self.color_format;
+        config.present_mode = wgpu::PresentMode::AutoVsync;
+        Some(config)
+    }
+
+    /// Uploads a chunk mesh.
+    #[must_use]
+    pub fn upload(&self, mesh: &ChunkMesh, geometric_error: f64) -> GpuMesh {
+        let vertices: Vec<GpuVertex> = mesh
+            .vertices()
+            .iter()
+            .map(|v| GpuVertex {
+                position: v.position.to_array(),
+                normal: v.normal.to_array(),
+                morph_target: v.morph_target.to_array(),
+                packed: u32::from(v.material) | (u32::from(v.flags) << 16),
+            })
+            .collect();
+        let label = format!("chunk {:?}", mesh.key());
+        // An empty chunk still gets (tiny) buffers; it is never drawn.
+        let zero_vertex = [GpuVertex::zeroed()];
+        let vertex_bytes: &[u8] =
+            if vertices.is_empty() { bytemuck::cast_slice(&zero_vertex) } else { bytemuck::cast_slice(&vertices) };
+        let index_bytes: &[u8] = if mesh.indices().is_empty() {
+            bytemuck::cast_slice(&[0u32; 3])
+        } else {
+            bytemuck::cast_slice(mesh.indices())
+        };
+        let vertex_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(&label),
+            contents: vertex_bytes,
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let index_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(&label),
+            contents: index_bytes,
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        GpuMesh {
+            vertices: vertex_buffer,
+            indices: index_buffer,
+            index_count: mesh.indices().len() as u32,
+            origin: mesh.origin(),
+            lod: mesh.key().lod,
+            geometric_error: geometric_error as f32,
+        }
+    }
+
+    /// Draws `meshes` into `target` (of `size`), clearing to the background.
+    pub fn draw(&mut self, target: &wgpu::TextureView, size: (u32, u32), frame: &FrameParams, meshes: &[&GpuMesh]) {
+        self.ensure_depth(size);
+        let aspect = size.0 as f32 / size.1.max(1) as f32;
+        // Camera-relative: the eye is the origin of the render space, and
+        // each chunk's offset (origin − eye) is computed in f64 below.
+        let view_proj = view_projection(frame.forward, frame.up, frame.fov_y_degrees, aspect);
+        let sun = Vec3::new(0.4, 0.8, 0.45).normalize();
+        let uniform = FrameUniform {
+            view_proj: view_proj.to_cols_array_2d(),
+            sun: [sun.x, sun.y, sun.z, 0.25],
+            params: [frame.k, frame.threshold_px, frame.view as u32 as f32, if frame.morph { 1.0 } else { 0.0 }],
+        };
+        self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
+        if meshes.len() as u64 > self.chunk_capacity {
+            let capacity = (meshes.len() as u64).next_power_of_two();
+            let (buffer, group) = chunk_ring(&self.device, &self.chunk_layout, capacity);
+            self.chunk_buffer = buffer;
+            self.chunk_group = group;
+            self.chunk_capacity = capacity;
+        }
+        let chunk_uniforms: Vec<ChunkUniform> = meshes
+            .iter()
+            .map(|m| {
+                let offset = (m.origin - frame.eye).as_vec3();
+                ChunkUniform {
+                    offset: [offset.x, offset.y, offset.z, m.geometric_error],
+                    info: [f32::from(m.lod), f32::from(frame.max_lod), 0.0, 0.0],
+                    _pad: [0.0; 56],
+                }
+            })
+            .collect();
+        if !chunk_uniforms.is_empty() {
+            self.queue.write_buffer(&self.chunk_buffer, 0, bytemuck::cast_slice(&chunk_uniforms));
+        }
+        let bg = frame.background.map(|c| f64::from(c) / 255.0);
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        {
+            let depth_view = &self.depth.as_ref().map(|d| &d.1);
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("terrain pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: depth_view.map(|view| wgpu::RenderPassDepthStencilAttachment {
+                    view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            for (n, mesh) in meshes.iter().enumerate() {
+                if mesh.index_count == 0 {
+                    continue;
+                }
+                pass.set_bind_group(1, &self.chunk_group, &[(n as u64 * CHUNK_UNIFORM_STRIDE) as u32]);
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            }
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
+    fn ensure_depth(&mut self, size: (u32, u32)) {
+        if self.depth.as_ref().is_some_and(|d| d.2 == size) {
+            return;
+        }
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size: wgpu::Extent3d { width: size.0.max(1), height: size.1.max(1), depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        self.depth = Some((texture, view, size));
+    }
+}
+
+fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u64) -> (wgpu::Buffer, wgpu::BindGroup) {
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("chunk uniforms"),
+        size: capacity * CHUNK_UNIFORM_STRIDE,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("chunk bind group"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &buffer,
+                offset: 0,
+                size: NonZeroU64::new(32),
+            }),
+        }],
+    });
+    (buffer, group)
+}
+
+/// An offscreen colour target and the buffer it is read back through.
+pub struct Offscreen {
+    texture: wgpu::Texture,
+    /// View to draw into.
+    pub view: wgpu::TextureView,
+    size: (u32, u32),
+}
+
+impl Offscreen {
+    /// A `width` × `height` target.
+    #[must_use]
+    pub fn new(gpu: &Gpu, size: (u32, u32)) -> Self {
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("offscreen colour"),
+            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        Self { texture, view, size }
+    }
+
+    /// The image size.
+    #[must_use]
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// Copies the image back: RGBA8, row 0 at the top, no row padding.
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`] if mapping fails.
+    pub fn read(&self, gpu: &Gpu) -> Result<Vec<u8>, GpuError> {
+        let (width, height) = self.size;
+        let unpadded = width * 4;
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded = unpadded.div_ceil(align) * align;
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size: u64::from(padded) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            let _ = sender.send(result);
+        });
+        gpu.device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let mut pixels = Vec::with_capacity((unpadded * height) as usize);
+        {
+            let mapped = buffer.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?;
+            for row in mapped.chunks_exact(padded as usize) {
+                pixels.extend_from_slice(&row[..unpadded as usize]);
+            }
+        }
+        buffer.unmap();
+        Ok(pixels)
+    }
+}
+
+/// The camera-relative view-projection (eye at the origin): right-handed
+/// look-to with an orthonormalised basis, reverse-Z infinite perspective
+/// (near plane 0.1 m), Y up in NDC.
+#[must_use]
+pub fn view_projection(forward: DVec3, up: DVec3, fov_y_degrees: f32, aspect: f32) -> Mat4 {
+    let forward = forward.normalize();
+    let right = forward.cross(up).normalize();
+    let up = right.cross(forward);
+    let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward.as_vec3(), up.as_vec3());
+    glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y_degrees.to_radians(), aspect, 0.1) * view
+}
