@@ -233,10 +233,25 @@ impl PlanetApp {
         figures
     }
 
-    /// The lowest surface radius anywhere (the crack sentinel sphere).
+    /// The lowest surface radius anywhere: the camera must stay above it.
     #[must_use]
     pub fn min_surface_radius(&self) -> f64 {
         self.world.resource::<Lod>().tree.min_surface_radius()
+    }
+
+    /// The lowest surface radius under the leaves in view: the crack
+    /// sentinel sphere. Everything on screen lies above it, and unlike the
+    /// planet-wide minimum it is close enough under the ground that grazing
+    /// views still see it.
+    #[must_use]
+    pub fn view_min_surface_radius(&self) -> f64 {
+        let tree = &self.world.resource::<Lod>().tree;
+        tree.visible_leaves()
+            .iter()
+            .filter_map(|&c| tree.node_bounds(c))
+            .map(|b| b.min_radius)
+            .reduce(f64::min)
+            .unwrap_or_else(|| tree.min_surface_radius())
     }
 
     /// The GPU.

@@ -72,7 +72,8 @@ pub struct Figures {
     /// What the frame drew.
     pub frame: FrameFigures,
     /// Background pixels inside the silhouette of the sphere of minimum
-    /// surface radius (when a background was given).
+    /// surface radius under the leaves in view (when a background was
+    /// given).
     pub crack_pixels: Option<usize>,
     /// Pixels inside that silhouette.
     pub planet_pixels: usize,
@@ -171,7 +172,8 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     }
     app.draw(&target.view, shot.size, background, shot.view);
     let rgba = target.read(app.gpu()).context("reading the image back")?;
-    let (crack_pixels, planet_pixels) = count_cracks(&rgba, shot, &view, min_radius, background);
+    let sentinel_radius = app.view_min_surface_radius();
+    let (crack_pixels, planet_pixels) = count_cracks(&rgba, shot, &view, sentinel_radius, background);
     Ok(Picture {
         adapter: app.gpu().adapter_name.clone(),
         figures: Figures {
