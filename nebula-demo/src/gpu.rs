@@ -67,6 +67,10 @@ pub enum DebugView {
     Skirts,
     /// The geomorph factor (blue = coarse, red = fine).
     Morph,
+    /// Triangle edges (where the adapter can draw lines).
+    Wireframe,
+    /// One colour per chunk, so chunk bounds show.
+    Chunks,
 }
 
 /// One chunk's mesh on the GPU.
@@ -80,6 +84,8 @@ pub struct GpuMesh {
     pub lod: u8,
     /// δ(L) used for geomorphing, metres.
     pub geometric_error: f32,
+    /// A small number from the chunk key, for the chunk-colour view.
+    pub id: u32,
 }
 
 /// What a frame draws: the view and the per-frame constants.
@@ -118,6 +124,8 @@ pub struct Gpu {
     pub color_format: wgpu::TextureFormat,
     adapter: wgpu::Adapter,
     pipeline: wgpu::RenderPipeline,
+    /// The same pipeline drawing triangle edges, if the adapter can.
+    wire_pipeline: Option<wgpu::RenderPipeline>,
     frame_buffer: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
     chunk_layout: wgpu::BindGroupLayout,
@@ -152,7 +160,7 @@ impl Gpu {
         };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("nebula device"),
-            required_features: wgpu::Features::empty(),
+            required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
             required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
             ..Default::default()
         }))
@@ -193,48 +201,56 @@ impl Gpu {
             immediate_size: 0,
         });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Uint32];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("nebula terrain pipeline"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: size_of::<GpuVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &attributes,
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: Some(wgpu::Face::Back),
-                ..Default::default()
-            },
-            // Reverse Z with an infinite far plane: holds from 0.1 m to a
-            // planet's diameter.
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: color_format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let make_pipeline = |polygon_mode: wgpu::PolygonMode, label: &str| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: size_of::<GpuVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &attributes,
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: Some(wgpu::Face::Back),
+                    polygon_mode,
+                    ..Default::default()
+                },
+                // Reverse Z with an infinite far plane: holds from 0.1 m to
+                // a planet's diameter.
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: wgpu::StencilState::default(),
+                    bias: wgpu::DepthBiasState::default(),
+                }),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: color_format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipeline = make_pipeline(wgpu::PolygonMode::Fill, "nebula terrain pipeline");
+        let wire_pipeline = device
+            .features()
+            .contains(wgpu::Features::POLYGON_MODE_LINE)
+            .then(|| make_pipeline(wgpu::PolygonMode::Line, "nebula wireframe pipeline"));
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniform"),
             size: size_of::<FrameUniform>() as u64,
@@ -254,6 +270,7 @@ impl Gpu {
             color_format,
             adapter,
             pipeline,
+            wire_pipeline,
             frame_buffer,
             frame_group,
             chunk_layout,
@@ -313,6 +330,14 @@ impl Gpu {
             origin: mesh.origin(),
             lod: mesh.key().lod,
             geometric_error: geometric_error as f32,
+            id: {
+                let k = mesh.key();
+                (k.x.wrapping_mul(73_856_093)
+                    ^ k.y.wrapping_mul(19_349_663)
+                    ^ (k.layer as u32).wrapping_mul(83_492_791)
+                    ^ (k.face as u32) << 3)
+                    % 4096
+            },
         }
     }
 
@@ -343,7 +368,7 @@ impl Gpu {
                 let offset = (m.origin - frame.eye).as_vec3();
                 ChunkUniform {
                     offset: [offset.x, offset.y, offset.z, m.geometric_error],
-                    info: [f32::from(m.lod), f32::from(frame.max_lod), 0.0, 0.0],
+                    info: [f32::from(m.lod), f32::from(frame.max_lod), m.id as f32, 0.0],
                     _pad: [0.0; 56],
                 }
             })
@@ -375,7 +400,11 @@ impl Gpu {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            let pipeline = match (&self.wire_pipeline, frame.view) {
+                (Some(wire), DebugView::Wireframe) => wire,
+                _ => &self.pipeline,
+            };
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
             for (n, mesh) in meshes.iter().enumerate() {
                 if mesh.index_count == 0 {

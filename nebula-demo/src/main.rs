@@ -2,8 +2,9 @@
 //! headless to PNG with a JSON report.
 //!
 //! Keys: W/A/S/D move, Q/E down/up, mouse (hold the left button) looks,
-//! Shift ×10 speed, O jumps between orbit and the surface, 1–4 debug views
-//! (shaded, LOD colours, skirts, morph factor), Esc quits. Speed scales with
+//! Shift ×10 speed, O jumps between orbit and the surface, 1–6 debug views
+//! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours),
+//! Esc quits. Speed scales with
 //! altitude.
 
 use std::path::PathBuf;
@@ -446,6 +447,8 @@ impl ApplicationHandler for Windowed {
                         KeyCode::Digit2 => self.view = DebugView::Lod,
                         KeyCode::Digit3 => self.view = DebugView::Skirts,
                         KeyCode::Digit4 => self.view = DebugView::Morph,
+                        KeyCode::Digit5 => self.view = DebugView::Wireframe,
+                        KeyCode::Digit6 => self.view = DebugView::Chunks,
                         KeyCode::KeyO => {
                             let r = self.eye.length();
                             let radius = self.shot.position.length().max(r);

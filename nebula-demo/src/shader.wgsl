@@ -12,7 +12,7 @@ struct Frame {
 struct Chunk {
     // xyz: chunk origin − camera (computed in f64 on the CPU), w: δ(L) in metres.
     offset: vec4<f32>,
-    // x: LOD, y: max LOD (for colouring).
+    // x: LOD, y: max LOD, z: chunk id (for colouring).
     info: vec4<f32>,
 };
 
@@ -99,6 +99,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         base = vec3<f32>(1.0, 0.1, 0.6);
     } else if (view == 3u) {
         base = mix(vec3<f32>(0.1, 0.2, 0.9), vec3<f32>(0.9, 0.3, 0.1), in.morph);
+    } else if (view == 4u) {
+        base = vec3<f32>(0.95, 0.95, 0.95);
+    } else if (view == 5u) {
+        base = lod_colour(chunk.info.z * 0.37 + 0.1);
     }
     return vec4<f32>(encode(base * light), 1.0);
 }
