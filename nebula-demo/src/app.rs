@@ -166,6 +166,13 @@ impl PlanetApp {
         self.schedule.run(&mut self.world);
     }
 
+    /// Chunk entities alive (drawn, waiting, or kept a while out of view):
+    /// what stays flat on a long flight.
+    #[must_use]
+    pub fn chunk_entities(&self) -> usize {
+        self.world.resource::<ChunkIndex>().0.len()
+    }
+
     /// Meshing jobs still out.
     #[must_use]
     pub fn jobs_in_flight(&self) -> usize {

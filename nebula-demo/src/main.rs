@@ -232,10 +232,11 @@ fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Resul
             let path = folder.join(format!("frame-{n}.png"));
             write_png(&path, &picture.rgba, picture.size)?;
             println!(
-                "wrote {} ({} chunks, {} triangles)",
+                "wrote {} ({} chunks drawn, {} triangles, {} chunk entities alive)",
                 path.display(),
                 picture.figures.frame.chunks,
-                picture.figures.frame.triangles
+                picture.figures.frame.triangles,
+                app.chunk_entities()
             );
         }
         return Ok(());

@@ -116,14 +116,22 @@ fn assert_relations(tree: &LodTree, restricted: bool) {
     }
 }
 
+/// The +Z root, the distance at which it must split, and a test of
+/// whether a tree has split it.
+fn pos_z_root() -> (ChunkColumn, f64, impl Fn(&LodTree) -> bool) {
+    let source = planet();
+    let screen = settings(BalanceMode::Unrestricted).screen_space().unwrap();
+    let max_lod = source.layout().max_lod();
+    let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
+    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
+    (root, split_distance, move |t: &LodTree| t.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod))
+}
+
 #[test]
 fn split_decision_matches_the_sse_formula_at_the_boundary() {
     let source = planet();
     let settings = settings(BalanceMode::Unrestricted);
-    let screen = settings.screen_space().unwrap();
-    let max_lod = source.layout().max_lod();
-    let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
-    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
+    let (root, split_distance, is_split) = pos_z_root();
     for (factor, expect_split) in [(0.999_999, true), (1.000_001, false)] {
         let mut tree = LodTree::new(source, settings).unwrap();
         let bounds = *tree.node_bounds(root).unwrap();
@@ -131,23 +139,17 @@ fn split_decision_matches_the_sse_formula_at_the_boundary() {
         let camera = camera_at(DVec3::new(0.0, 0.0, bounds.max.z + split_distance * factor));
         assert!((bounds.distance(camera.position) - split_distance * factor).abs() < 1e-6 * split_distance);
         tree.update(source, &camera).unwrap();
-        let split = tree.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod);
-        assert_eq!(split, expect_split, "factor {factor}");
+        assert_eq!(is_split(&tree), expect_split, "factor {factor}");
     }
 }
 
 #[test]
 fn hysteresis_keeps_a_fresh_split() {
     let source = planet();
-    let settings = settings(BalanceMode::Unrestricted);
-    let screen = settings.screen_space().unwrap();
-    let max_lod = source.layout().max_lod();
-    let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
-    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
-    let mut tree = LodTree::new(source, settings).unwrap();
+    let (root, split_distance, split) = pos_z_root();
+    let mut tree = LodTree::new(source, settings(BalanceMode::Unrestricted)).unwrap();
     let top = tree.node_bounds(root).unwrap().max.z;
     tree.update(source, &camera_at(DVec3::new(0.0, 0.0, top + split_distance * 0.99))).unwrap();
-    let split = |t: &LodTree| t.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod);
     assert!(split(&tree));
     // Just outside the split distance it stays split (within hysteresis)...
     tree.update(source, &camera_at(DVec3::new(0.0, 0.0, top + split_distance * 1.1))).unwrap();

@@ -52,13 +52,14 @@ fn check(name: &str, view: &PlanetView, camera: &Camera, min_planet_fraction: f6
     let stats = view.stats.clone().unwrap_or_default();
     let skirts: usize = view.meshes.iter().map(|m| m.skirt_triangle_count()).sum();
     println!(
-        "{name}: {} chunks, {} triangles ({:.1} % skirts), LODs {:?}, max diff {}; rays {} ({:.0}/s), on planet {}, \
-         cracks {}; pairs {} ({} across LODs), t-junctions {}, unmatched {}",
+        "{name}: {} chunks, {} triangles ({:.1} % skirts), LODs {:?}, max diff {}, balance passes {}; rays {} \
+         ({:.0}/s), on planet {}, cracks {}; pairs {} ({} across LODs), t-junctions {}, unmatched {}",
         view.meshes.len(),
         report.triangles,
         100.0 * skirts as f64 / report.triangles.max(1) as f64,
         stats.lod_histogram,
         stats.max_neighbor_lod_diff,
+        stats.balance_passes,
         report.rays,
         report.rays as f64 / seconds,
         report.rays_on_planet,
