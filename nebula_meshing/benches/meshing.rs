@@ -101,7 +101,7 @@ fn meshing(c: &mut Criterion) {
         ("noise50", noisy_chunk(ChunkKey { face: CubeFace::PosX, lod: 0, x: 9, y: 9, layer: 0 })),
     ];
     let source = Prepared { planet: &planet, chunks: cases.iter().map(|(_, v)| (v.key(), v.clone())).collect() };
-    let mut group = c.benchmark_group("chunk");
+    let mut group = c.benchmark_group("mesh_chunk");
     for (name, voxels) in &cases {
         let key = voxels.key();
         let mut greedy = GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME);
@@ -148,7 +148,7 @@ fn meshing(c: &mut Criterion) {
             (key, ChunkLodContext::uniform(2))
         })
         .collect();
-    let mut group = c.benchmark_group("many_chunks");
+    let mut group = c.benchmark_group("mesh_many_chunks");
     group.sample_size(20);
     group.bench_function("sequential_64", |b| {
         let mut buffer = ChunkMeshBuffer::new();

@@ -3,9 +3,10 @@
 //! parallel with rayon (same run, so the ratio is meaningful on a noisy
 //! machine). Run: `cargo bench -p nebula_voxel`.
 //!
-//! Measured 2026-11-22 on the 2-core dev machine: LOD 0 chunk 1.20 ms
-//! (27 M voxels/s), LOD 8 chunk 2.3 ms (14 M voxels/s); 64 chunks 81 ms
-//! sequential vs. 45 ms with rayon (1.80× on 2 threads, 47 M voxels/s).
+//! Measured 2026-11-22 on the 2-core dev machine (Earth planet with hills):
+//! LOD 0 chunk 1.14 ms (28.7 M voxels/s), LOD 8 chunk 3.06 ms (10.7 M
+//! voxels/s); 64 LOD-2 chunks 91.4 ms sequential vs. 48.2 ms with rayon
+//! (1.90× on 2 threads, 43.5 M voxels/s).
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};
@@ -19,7 +20,7 @@ fn surface_chunk(planet: &ProceduralPlanet, lod: u8, x: u32, y: u32) -> ChunkKey
 
 fn generate(c: &mut Criterion) {
     let planet = ProceduralPlanet::new(PlanetSettings::earth(1)).expect("valid planet");
-    let mut group = c.benchmark_group("chunk");
+    let mut group = c.benchmark_group("voxel_chunk");
     group.throughput(Throughput::Elements(32 * 32 * 32));
     for lod in [0u8, 8] {
         let key = surface_chunk(&planet, lod, 5, 7);
@@ -31,7 +32,7 @@ fn generate(c: &mut Criterion) {
     group.finish();
 
     let keys: Vec<ChunkKey> = (0..64).map(|n| surface_chunk(&planet, 2, 100 + n % 8, 200 + n / 8)).collect();
-    let mut group = c.benchmark_group("many_chunks");
+    let mut group = c.benchmark_group("voxel_many_chunks");
     group.throughput(Throughput::Elements(64 * 32 * 32 * 32));
     group.sample_size(20);
     group.bench_function("sequential_64", |b| {
