@@ -314,7 +314,7 @@ impl ChunkMesh {
     }
 
     /// The vertices of the outline on `side` (see
-    /// [`ChunkMesh::outline_edges`]), walked as polylines in the order of
+    /// [`ChunkMesh::outline`]), walked as polylines in the order of
     /// growing along-edge coordinate: what a neighbour's edge must meet.
     #[must_use]
     pub fn ordered_boundary_vertices(&self, side: FaceDirection) -> Vec<MeshVertex> {

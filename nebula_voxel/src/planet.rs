@@ -346,21 +346,19 @@ impl VoxelSource for ProceduralPlanet {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
-        // Sample a 3 × 3 grid; any point of the column is within `step` cells
-        // (|Δi| + |Δj|) of a sample, so S·step covers what lies between.
-        // (The LOD tree asks for every node it creates, so this is its
-        // hottest call: 9 samples cost a third of 25, for bounds a few
-        // voxels looser.)
+        // Sample the four corners and the centre: every point of the column
+        // is within `step` = half the column (in |Δi| + |Δj|) of one of them
+        // — as close as a 3 × 3 grid gets, for 5 samples instead of 9 — so
+        // S·step covers what lies between. (The LOD tree asks for every
+        // node it creates: this is its hottest call.)
         let step = chunk / 2.0;
         let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
-        for a in 0..=2 {
-            for b in 0..=2 {
-                let i = f64::from(column.x) * chunk + f64::from(a) * step;
-                let j = f64::from(column.y) * chunk + f64::from(b) * step;
-                let h = self.height_layers(column.face, i, j);
-                low = low.min(h);
-                high = high.max(h);
-            }
+        for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
+            let i = f64::from(column.x) * chunk + a * chunk;
+            let j = f64::from(column.y) * chunk + b * chunk;
+            let h = self.height_layers(column.face, i, j);
+            low = low.min(h);
+            high = high.max(h);
         }
         let margin = self.max_slope * step;
         let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;

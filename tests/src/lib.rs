@@ -2,7 +2,7 @@
 //! would, on any machine and deterministically.
 //!
 //! - [`assemble`]: run the LOD selection for a camera and mesh every chunk
-//!   in view with its real [`ChunkLodContext`](nebula_meshing::ChunkLodContext).
+//!   in view with its real `ChunkLodContext`.
 //! - [`cast_cracks`]: a CPU ray-cast crack oracle. A grid of view rays is
 //!   cast; a ray went through a crack if the first triangle it meets faces
 //!   away from it (it got inside the ground without crossing the surface),
