@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use nebula_lod::LodSettings;
-use nebula_math::DVec3;
+use nebula_math::{DVec3, ray_sphere};
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
 use crate::app::{FrameFigures, PlanetApp, View, camera};
@@ -192,21 +192,11 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
 /// it at all.
 fn count_cracks(rgba: &[u8], shot: &Shot, view: &View, min_radius: f64, background: [u8; 3]) -> (usize, usize) {
     let (width, height) = shot.size;
-    let eye = view.camera.position;
-    let forward = view.camera.forward.normalize();
-    let right = forward.cross(view.camera.up).normalize();
-    let up = right.cross(forward);
-    let tan_y = (shot.fov_y_degrees.to_radians() / 2.0).tan();
-    let tan_x = tan_y * view.camera.aspect;
     let (mut cracks, mut planet) = (0, 0);
     for py in 0..height {
         for px in 0..width {
-            let x = (2.0 * (f64::from(px) + 0.5) / f64::from(width) - 1.0) * tan_x;
-            let y = (1.0 - 2.0 * (f64::from(py) + 0.5) / f64::from(height)) * tan_y;
-            let dir = (forward + right * x + up * y).normalize();
-            let b = eye.dot(dir);
-            let c = eye.length_squared() - min_radius * min_radius;
-            if b * b - c < 0.0 || -b - (b * b - c).sqrt() <= 0.0 {
+            let dir = view.camera.pixel_ray(shot.fov_y_degrees, shot.size, (px, py));
+            if ray_sphere(view.camera.position, dir, min_radius).is_none() {
                 continue;
             }
             planet += 1;

@@ -102,6 +102,24 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Unit direction of the ray through the centre of pixel `(px, py)` of
+    /// a `width` × `height` image (row 0 at the top) with vertical field of
+    /// view `fov_y_degrees`: the one place that maps pixels to rays, for
+    /// crack counting and ray-cast checks.
+    #[must_use]
+    pub fn pixel_ray(&self, fov_y_degrees: f64, (width, height): (u32, u32), (px, py): (u32, u32)) -> DVec3 {
+        let forward = self.forward.normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
+        let tan_x = tan_y * f64::from(width) / f64::from(height.max(1));
+        let x = (2.0 * (f64::from(px) + 0.5) / f64::from(width.max(1)) - 1.0) * tan_x;
+        let y = (1.0 - 2.0 * (f64::from(py) + 0.5) / f64::from(height.max(1))) * tan_y;
+        (forward + right * x + up * y).normalize()
+    }
+}
+
 /// Bad input to the LOD selection.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]

@@ -231,3 +231,18 @@ impl Cubesphere {
 pub fn relative_position(point: DVec3, origin: DVec3) -> glam::Vec3 {
     (point - origin).as_vec3()
 }
+
+/// Distance along unit `dir` from `origin` to the sphere of `radius` around
+/// the planet centre, where the ray first enters it; `None` if it misses or
+/// the sphere is behind.
+#[must_use]
+pub fn ray_sphere(origin: DVec3, dir: DVec3, radius: f64) -> Option<f64> {
+    let b = origin.dot(dir);
+    let c = origin.length_squared() - radius * radius;
+    let disc = b * b - c;
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t > 0.0).then_some(t)
+}

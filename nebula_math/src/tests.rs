@@ -309,3 +309,14 @@ fn face_directions_map_to_face_edges() {
     assert_eq!(FaceDirection::PosY.face_edge(), None);
     assert!(FaceDirection::ALL.iter().enumerate().all(|(i, d)| *d as usize == i));
 }
+
+#[test]
+fn rays_meet_spheres_where_expected() {
+    let eye = DVec3::new(0.0, 0.0, 10.0);
+    assert_eq!(ray_sphere(eye, -DVec3::Z, 4.0), Some(6.0));
+    assert_eq!(ray_sphere(eye, DVec3::Z, 4.0), None, "sphere behind");
+    assert_eq!(ray_sphere(eye, DVec3::X, 4.0), None, "miss");
+    let grazing = DVec3::new(0.6, 0.0, -0.8);
+    let t = ray_sphere(eye, grazing, 6.0).unwrap();
+    assert!(((eye + grazing * t).length() - 6.0).abs() < 1e-12);
+}

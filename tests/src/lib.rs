@@ -39,7 +39,7 @@ use std::collections::{HashMap, HashSet};
 use std::time::Duration;
 
 use nebula_lod::{Camera, ChunkLodContext, LodError, LodSettings, LodStats, LodTree, NeighborLodRelation};
-use nebula_math::{DVec3, FaceDirection, FaceEdge, LatticePoint};
+use nebula_math::{DVec3, FaceDirection, FaceEdge, LatticePoint, ray_sphere};
 use nebula_meshing::{ChunkMesh, MeshError, MeshOptions, mesh_chunks};
 use nebula_voxel::{ChunkColumn, ChunkKey, VoxelSource};
 use obvhs::BvhBuildParams;
@@ -199,7 +199,8 @@ struct ExactTriangle {
 }
 
 /// Casts a `width` × `height` grid of view rays (through pixel centres,
-/// row 0 at the top) from `camera` with the view's field of view and counts
+/// row 0 at the top; the image's aspect, not the camera's, shapes the rays)
+/// from `camera` with the view's field of view and counts
 /// the rays that leak through the surface to the sphere of minimum surface
 /// radius.
 #[must_use]
@@ -218,18 +219,10 @@ pub fn cast_cracks(view: &PlanetView, camera: &Camera, width: u32, height: u32) 
         .collect();
     let bvh = build_bvh2_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
     let min_radius = view.min_surface_radius;
-    let forward = camera.forward.normalize();
-    let right = forward.cross(camera.up).normalize();
-    let up = right.cross(forward);
-    let tan_y = (view.fov_y_degrees.to_radians() / 2.0).tan();
-    let tan_x = tan_y * camera.aspect;
     let results: Vec<(bool, bool, DVec3, u32)> = (0..width * height)
         .into_par_iter()
         .map(|pixel| {
-            let (px, py) = (f64::from(pixel % width), f64::from(pixel / width));
-            let x = (2.0 * (px + 0.5) / f64::from(width) - 1.0) * tan_x;
-            let y = (1.0 - 2.0 * (py + 0.5) / f64::from(height)) * tan_y;
-            let dir = (forward + right * x + up * y).normalize();
+            let dir = camera.pixel_ray(view.fov_y_degrees, (width, height), (pixel % width, pixel / width));
             let t_sphere = ray_sphere(eye, dir, min_radius);
             let limit = t_sphere.map_or(f32::INFINITY, |t| (t * 1.0001) as f32);
             let ray = Ray::new(dir.as_vec3a() * 0.0, dir.as_vec3a(), 0.0, limit);
@@ -277,19 +270,6 @@ fn nearest_chunks(view: &PlanetView, point: DVec3) -> Vec<ChunkKey> {
         .collect();
     by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
     by_distance.into_iter().take(4).map(|(_, key)| key).collect()
-}
-
-/// Distance along unit `dir` from `origin` to the sphere of `radius`
-/// around the planet centre, if the ray meets it.
-fn ray_sphere(origin: DVec3, dir: DVec3, radius: f64) -> Option<f64> {
-    let b = origin.dot(dir);
-    let c = origin.length_squared() - radius * radius;
-    let disc = b * b - c;
-    if disc < 0.0 {
-        return None;
-    }
-    let t = -b - disc.sqrt();
-    (t > 0.0).then_some(t)
 }
 
 /// Möller–Trumbore in f64 from the origin along `dir`, both sides, with a
