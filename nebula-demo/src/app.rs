@@ -203,11 +203,13 @@ impl PlanetApp {
             morph: true,
             max_lod,
         };
-        let mut query = self.world.query_filtered::<(Entity, &Chunk), (With<Shown>, With<Uploaded>)>();
+        // Retiring chunks stay on screen until their successors are all
+        // ready (their columns are no longer leaves, so no cull test).
+        let mut query = self.world.query_filtered::<(Entity, &Chunk, Has<Retiring>), (With<Shown>, With<Uploaded>)>();
         let chosen: Vec<Entity> = query
             .iter(&self.world)
-            .filter(|(_, chunk)| visible.contains(&chunk.key.column()))
-            .map(|(entity, _)| entity)
+            .filter(|(_, chunk, retiring)| *retiring || visible.contains(&chunk.key.column()))
+            .map(|(entity, _, _)| entity)
             .collect();
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
             let meshes: Vec<&GpuMesh> =
@@ -297,7 +299,7 @@ fn lod_system(
     mut lod: ResMut<Lod>,
     mut index: ResMut<ChunkIndex>,
     mut times: ResMut<StageTimes>,
-    mut chunks: Query<&mut Chunk>,
+    mut chunks: Query<(&mut Chunk, Has<Retiring>)>,
 ) {
     let start = Instant::now();
     let planet = &*planet.0;
@@ -308,7 +310,12 @@ fn lod_system(
         let Some(context) = lod.tree.context(key.column()) else { continue };
         match index.0.get(&key) {
             Some(&entity) => {
-                if let Ok(mut chunk) = chunks.get_mut(entity) {
+                if let Ok((mut chunk, retiring)) = chunks.get_mut(entity) {
+                    if retiring {
+                        // Its leaf came back before the swap: keep it.
+                        commands.entity(entity).remove::<Retiring>();
+                        chunk.queued = chunk.queued && chunk.context == context;
+                    }
                     chunk.last_seen = frame.0;
                     if chunk.context != context {
                         chunk.context = context;
@@ -327,8 +334,11 @@ fn lod_system(
     let leaves: std::collections::HashSet<_> = lod.tree.leaves().into_iter().collect();
     let mut freed = Vec::new();
     for (&key, &entity) in &index.0 {
-        let Ok(chunk) = chunks.get(entity) else { continue };
+        let Ok((chunk, retiring)) = chunks.get(entity) else { continue };
         if !leaves.contains(&key.column()) {
+            if retiring {
+                continue;
+            }
             commands.entity(entity).insert(Retiring);
         } else if frame.0.saturating_sub(chunk.last_seen) > 300 {
             freed.push(key);

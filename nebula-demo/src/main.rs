@@ -171,19 +171,18 @@ fn run(args: Args) -> anyhow::Result<()> {
 
 fn info(planet: &ProceduralPlanet, json: bool) -> anyhow::Result<()> {
     let layout = planet.layout();
-    let bounds = planet.surface_bounds(nebula_voxel::ChunkColumn {
-        face: nebula_voxel::CubeFace::PosX,
-        lod: layout.max_lod(),
-        x: 0,
-        y: 0,
-    })?;
+    // The face roots' bounds cover the whole planet.
+    let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for face in nebula_voxel::CubeFace::ALL {
+        let bounds = planet.surface_bounds(nebula_voxel::ChunkColumn { face, lod: layout.max_lod(), x: 0, y: 0 })?;
+        min = min.min(bounds.min_radius);
+        max = max.max(bounds.max_radius);
+    }
     let s = planet.settings();
-    let min = s.radius - s.amplitude - s.detail_amplitude;
-    let max = s.radius + s.amplitude + s.detail_amplitude;
     let value = serde_json::json!({
         "radius": s.radius,
         "voxel_size": planet.voxel_size(),
-        "min_surface_radius": min.max(bounds.min_radius.min(min)),
+        "min_surface_radius": min,
         "max_surface_radius": max,
         "max_lod": layout.max_lod(),
         "seed": s.seed,
@@ -195,7 +194,7 @@ fn info(planet: &ProceduralPlanet, json: bool) -> anyhow::Result<()> {
             "radius {} m, voxel {:.3} m, surface between {} and {} m, LODs 0..={}, seed {}",
             s.radius,
             planet.voxel_size(),
-            value["min_surface_radius"],
+            min,
             max,
             layout.max_lod(),
             s.seed
@@ -223,8 +222,7 @@ fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Resul
         let radius = args.radius;
         let folder = PathBuf::from("nebula-frames");
         for (n, height) in [2.0, 0.6, 0.15, 0.03, 0.008].iter().enumerate() {
-            let ground = radius + app_ground(&app, dir);
-            let eye = dir * (ground + radius * height);
+            let eye = dir * (app_ground_radius(&app, dir) + radius * height);
             let target = dir_ahead * app_ground_radius(&app, dir_ahead);
             let look = if *height > 0.5 { DVec3::ZERO } else { target };
             let frame_shot = Shot { position: eye, look_at: look, ..shot.clone() };
@@ -253,13 +251,8 @@ fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Resul
     Ok(())
 }
 
-fn app_ground(app: &PlanetApp, dir: DVec3) -> f64 {
-    app_ground_radius(app, dir) - app.world.resource::<nebula_demo::app::Planet>().0.settings().radius
-}
-
 fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
-    let planet = &app.world.resource::<nebula_demo::app::Planet>().0;
-    planet.settings().radius + planet.height_at(dir.normalize())
+    app.world.resource::<nebula_demo::app::Planet>().0.surface_point(dir).length()
 }
 
 /// The windowed demo.

@@ -20,8 +20,8 @@ use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 const FPS: f64 = 60.0;
 const RADIUS: f64 = 6_371_000.0;
 
-/// Cameras along a great circle through `start`, `speed` m/s, height given
-/// by `height(frame)` above the ground (or above the radius, `absolute`).
+/// Cameras along a great circle, `speed` m/s, `height(frame)` metres above
+/// the ground (`ground`) or above the base radius (not `ground`).
 fn path(
     planet: &ProceduralPlanet,
     frames: usize,
@@ -35,8 +35,8 @@ fn path(
         .map(|frame| {
             let angle = speed * frame as f64 / FPS / RADIUS;
             let dir = rotate(start, axis, angle);
-            let base = if ground { RADIUS + planet.height_at(dir) } else { RADIUS };
-            let position = dir * (base + height(frame));
+            let base = if ground { planet.surface_point(dir) } else { dir * RADIUS };
+            let position = base + dir * height(frame);
             let forward = axis.cross(dir) * 4.0 - dir; // ahead and a little down
             Camera { position, forward, up: dir, aspect: 16.0 / 9.0 }
         })

@@ -241,7 +241,9 @@ impl LodTree {
     ///
     /// # Errors
     /// [`LodError`] for a bad camera (NaN, inside the planet, degenerate
-    /// view) or a node the source refuses. The tree is unchanged then.
+    /// view), checked before anything changes, so the tree is as it was; or
+    /// a node the voxel source refuses, after which the tree may be part
+    /// way through the update and should be rebuilt.
     pub fn update<S: VoxelSource + ?Sized>(&mut self, source: &S, camera: &Camera) -> Result<LodChanges, LodError> {
         self.update_with(source, camera, false)
     }

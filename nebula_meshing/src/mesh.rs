@@ -23,9 +23,11 @@ pub struct MeshVertex {
     /// they hang from (normal locking).
     pub normal: Vec3,
     /// Geomorph target relative to the mesh origin: the vertex snapped to
-    /// the parent LOD's lattice (even local coordinates). Constrained and
-    /// skirt-top vertices keep their position, so seams stay closed while
-    /// morphing.
+    /// the parent LOD's lattice (even local coordinates). Constrained
+    /// vertices keep their position. Same-LOD neighbours share targets, so
+    /// their seams stay closed while morphing; across a LOD boundary the
+    /// coarser side's edge may move while the finer side's does not, and
+    /// the skirts (which morph with the vertex above them) cover the gap.
     pub morph_target: Vec3,
     /// Voxel material id of the face.
     pub material: u16,

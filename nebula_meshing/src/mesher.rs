@@ -279,7 +279,9 @@ impl ChunkMesher {
         let sphere = layout.sphere();
         let column = local[0] as usize * POINTS + local[2] as usize;
         if self.column_direction[column].0 != self.stamp {
-            let point = layout.lattice_point(key, [i64::from(local[0]), 0, i64::from(local[2])])?;
+            // Layer 0 names the column even when the chunk's bottom lies below
+            // the planet centre (the coarsest chunks of a planet do).
+            let point = layout.column_point(key, i64::from(local[0]), i64::from(local[2]))?;
             self.column_direction[column] = (self.stamp, sphere.column_direction(point));
         }
         // The point's radial layer, exactly as `ChunkLayout::lattice_point`

@@ -492,6 +492,32 @@ proptest! {
 }
 
 #[test]
+fn the_coarsest_chunks_mesh_although_they_reach_below_the_centre() {
+    // On a 2 km planet one LOD-6 chunk is ~3 km tall: layer −1 starts below
+    // the centre, yet holds all the ground below height 0.
+    let source = planet();
+    let max = source.layout().max_lod();
+    let column = ChunkColumn { face: CubeFace::NegY, lod: max, x: 0, y: 0 };
+    let layers = source.surface_chunk_layers(column).unwrap();
+    assert!(*layers.start() < 0);
+    let mut buffer = ChunkMeshBuffer::new();
+    let mut triangles = 0;
+    for layer in layers {
+        let mesh = mesh_chunk(
+            source,
+            column.chunk(layer),
+            &ChunkLodContext::uniform(max),
+            MeshOptions::default(),
+            &mut buffer,
+        )
+        .unwrap();
+        assert!(!mesh.has_t_junctions());
+        triangles += mesh.triangle_count();
+    }
+    assert!(triangles > 0);
+}
+
+#[test]
 fn parallel_meshing_matches_sequential() {
     let source = planet();
     let jobs: Vec<(ChunkKey, ChunkLodContext)> = (0..8)

@@ -104,6 +104,13 @@ impl<S: VoxelSource> EditedSource<S> {
         }
         let (face, fi, fj) = sphere.face_coords_of(center)?;
         let layer = sphere.radius_to_layer(center.length());
+        if layer.abs() > f64::from(i32::MAX / 4) {
+            return Err(VoxelError::OutOfRange {
+                name: "centre",
+                requirement: "within the planet's radial range",
+                value: center.length(),
+            });
+        }
         // Cells shrink towards face corners (by up to √2): widen the search.
         let reach = (radius / layout.sphere().cell_width() * 1.5).ceil() as i64 + 1;
         let reach_h = (radius / voxel_size).ceil() as i64 + 1;
@@ -212,8 +219,9 @@ impl<S: VoxelSource> EditedSource<S> {
             return self.fine.get(&at).copied().unwrap_or(base);
         }
         let Some(edit) = self.coarse[usize::from(at.lod) - 1].get(&at) else { return base };
-        let volume = 1i64 << (3 * u32::from(at.lod));
-        let solid = if base.is_solid() { volume } else { 0 } + edit.net_solid;
+        // i128: s³ = 2^(3·LOD) passes i64 at LOD 21.
+        let volume = 1i128 << (3 * u32::from(at.lod));
+        let solid = if base.is_solid() { volume } else { 0 } + i128::from(edit.net_solid);
         match (2 * solid > volume, base.is_solid()) {
             (true, true) => base,
             (true, false) => edit.fill,

@@ -245,12 +245,27 @@ impl ChunkLayout {
     }
 
     /// World position (f64, metres) of the chunk's origin: its lattice corner
-    /// with the smallest `(i, j, h)`.
+    /// with the smallest `(i, j, h)`, or, for a coarse chunk that reaches
+    /// below the planet centre, that corner's column at radial layer 0.
     ///
     /// # Errors
     /// As [`ChunkLayout::check_key`].
     pub fn chunk_origin(&self, key: ChunkKey) -> Result<DVec3, VoxelError> {
         self.check_key(key)?;
-        Ok(self.sphere.position(self.lattice_point(key, [0, 0, 0])?))
+        let corner = self.lattice_point(key, [0, 0, 0]).or_else(|_| self.column_point(key, 0, 0))?;
+        Ok(self.sphere.position(corner))
+    }
+
+    /// The lattice point at local column `(lx, lz)` of chunk `key` on radial
+    /// layer 0 (always above the centre): for the column's direction.
+    ///
+    /// # Errors
+    /// [`VoxelError::Math`] if the column is off the face.
+    pub fn column_point(&self, key: ChunkKey, lx: i64, lz: i64) -> Result<LatticePoint, VoxelError> {
+        let span = self.voxel_span(key.lod);
+        let chunk = i64::from(CHUNK_SIZE) * span;
+        let i = i64::from(key.x) * chunk + lx * span;
+        let j = i64::from(key.y) * chunk + lz * span;
+        Ok(self.sphere.lattice_point(key.face, i, j, 0)?)
     }
 }

@@ -11,8 +11,9 @@
 //! - **Point sampling for LODs**: a coarse voxel is solid iff its centre is
 //!   below the terrain at its column centre (see [`ProceduralPlanet`]). Any
 //!   LOD is generated directly at the same cost per chunk; the error bound
-//!   δ(L) = (s/2 + 1/2 + S·(s − 1)) layers (s = 2^L, S = steepest slope) is
-//!   derived and tested in [`ProceduralPlanet`]'s docs.
+//!   δ(L) = (s/2 + 1/2 + S·(s − 1)) layers (s = 2^L, S = steepest slope,
+//!   measured by sampling) is derived and tested in [`ProceduralPlanet`]'s
+//!   docs.
 //! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
 //!   voxels plus per-LOD majority counts, so coarse LODs follow and nothing
 //!   is lost when chunks are regenerated.

@@ -40,9 +40,10 @@
 //! ```
 //!
 //! `S` is measured when the planet is built (the largest step over 4,096
-//! random places, ×1.5 for the places not sampled); the test
-//! `geometric_error_bounds_the_voxel_tops` checks the bound against the
-//! voxels themselves.
+//! places, ×1.5 for the places not sampled), so the bound is empirical, not
+//! proven: a steeper spot than any sampled could exceed it. The test
+//! `geometric_error_bounds_the_voxel_tops` checks it against the voxels of
+//! places unrelated to the samples (worst error 0.52 of the bound there).
 
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 use noise::{Fbm, MultiFractal, NoiseFn, Perlin, RidgedMulti};
@@ -226,6 +227,14 @@ impl ProceduralPlanet {
     #[must_use]
     pub fn max_slope(&self) -> f64 {
         self.max_slope
+    }
+
+    /// The point on the terrain surface (height 0 plus [`Self::height_at`])
+    /// in direction `direction` (any length).
+    #[must_use]
+    pub fn surface_point(&self, direction: nebula_math::DVec3) -> nebula_math::DVec3 {
+        let direction = direction.normalize();
+        direction * (self.settings.radius + self.height_at(direction))
     }
 
     /// Terrain height above the base radius, metres, in unit direction

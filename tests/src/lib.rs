@@ -120,7 +120,8 @@ pub fn view_of_tree<S: VoxelSource + ?Sized>(
             .iter()
             .filter_map(|&c| tree.node_bounds(c))
             .map(|b| b.min_radius)
-            .fold(tree.min_surface_radius(), |low, r| if low == tree.min_surface_radius() { r } else { low.min(r) }),
+            .reduce(f64::min)
+            .unwrap_or_else(|| tree.min_surface_radius()),
         fov_y_degrees: tree.settings().fov_y_degrees,
         max_lod: tree.max_lod(),
         stats: Some(tree.stats()),

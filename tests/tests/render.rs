@@ -34,9 +34,7 @@ fn planet() -> PlanetSettings {
 }
 
 fn ground(settings: &PlanetSettings, dir: DVec3) -> DVec3 {
-    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
-    let dir = dir.normalize();
-    dir * (settings.radius + planet.height_at(dir))
+    ProceduralPlanet::new(settings.clone()).expect("valid planet").surface_point(dir)
 }
 
 fn shot(position: DVec3, look_at: DVec3, fov: f64) -> Shot {

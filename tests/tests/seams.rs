@@ -28,8 +28,7 @@ fn look(position: DVec3, target: DVec3) -> Camera {
 
 /// The point `height` metres above the ground in direction `dir`.
 fn above(source: &ProceduralPlanet, dir: DVec3, height: f64) -> DVec3 {
-    let dir = dir.normalize();
-    dir * (source.settings().radius + source.height_at(dir) + height)
+    source.surface_point(dir) + dir.normalize() * height
 }
 
 fn settings(fov: f64, balance: BalanceMode) -> LodSettings {
@@ -227,7 +226,7 @@ fn a_crater_across_a_chunk_and_a_face_edge_is_closed() {
     let n = f64::from(sphere.resolution());
     // On the border of +X and its +V neighbour, off a chunk corner.
     let dir = sphere.direction(CubeFace::PosX, n * 0.5 + 40.0, n);
-    let ground = source.base().settings().radius + source.base().height_at(dir);
+    let ground = source.base().surface_point(dir).length();
     let dirty = source.fill_sphere(dir * ground, 20.0, Voxel::AIR).unwrap();
     assert!(dirty.iter().any(|k| k.face != CubeFace::PosX));
     let camera = look(dir * (ground + 60.0) + dir.any_orthonormal_vector() * 40.0, dir * (ground - 10.0));
