@@ -296,3 +296,38 @@ proptest! {
         prop_assert!(incremental.stats().nodes_evaluated <= full.stats().nodes_evaluated);
     }
 }
+
+#[test]
+fn refreshed_bounds_follow_an_edit() {
+    use nebula_voxel::{EditedSource, Voxel};
+    let mut source = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(5)).unwrap());
+    let dir = DVec3::new(0.2, 0.3, 1.0).normalize();
+    let radius = source.base().settings().radius;
+    let ground = source.base().surface_point(dir);
+    let camera = camera_at(dir * (ground.length() + 40.0));
+    let mut tree = LodTree::new(&source, settings(BalanceMode::Unrestricted)).unwrap();
+    tree.update(&source, &camera).unwrap();
+    // A shaft far below every layer the leaf under the camera had.
+    let (face, i, j) = source.layout().sphere().face_coords_of(dir).unwrap();
+    let leaf = tree
+        .leaves()
+        .into_iter()
+        .find(|c| {
+            let size = f64::from(32u32 << c.lod);
+            c.face == face && (i / size) as u32 == c.x && (j / size) as u32 == c.y
+        })
+        .unwrap();
+    let before = tree.layers(leaf).unwrap();
+    let layer_height = source.layout().sphere().layer_height();
+    let mut dirty = Vec::new();
+    let depth_layers = (*before.start() - 3) * 32 * (1 << leaf.lod);
+    for step in 0..60 {
+        let r = radius + f64::from(depth_layers) * layer_height + f64::from(step) * 2.0;
+        dirty.extend(source.fill_sphere(dir * r, 3.0, Voxel::AIR).unwrap());
+    }
+    let gained = tree.refresh_bounds(&source, dirty.iter().map(|k| k.column())).unwrap();
+    let after = tree.layers(leaf).unwrap();
+    assert!(after.start() < before.start(), "{before:?} -> {after:?}");
+    assert!(gained.iter().any(|k| k.column() == leaf && k.layer < *before.start()));
+    let _ = radius;
+}

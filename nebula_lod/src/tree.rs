@@ -458,6 +458,54 @@ impl LodTree {
         }
     }
 
+    /// Re-reads the surface bounds of every node that covers one of
+    /// `columns` (any LOD; typically the dirty chunks an edit returned), so
+    /// that terrain an edit moved outside the old bounds is selected, culled
+    /// and meshed correctly. Returns the chunks that leaves gained (new
+    /// radial layers to mesh); their next decisions use the new bounds.
+    ///
+    /// # Errors
+    /// [`LodError::Voxel`] if the source refuses a node.
+    pub fn refresh_bounds<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        columns: impl IntoIterator<Item = ChunkColumn>,
+    ) -> Result<Vec<ChunkKey>, LodError> {
+        let mut covering = BTreeSet::new();
+        for column in columns {
+            let mut node = column;
+            loop {
+                if self.nodes.contains_key(&node) {
+                    covering.insert(node);
+                }
+                if node.lod >= self.layout.max_lod() {
+                    break;
+                }
+                node = parent(node);
+            }
+        }
+        let mut gained = Vec::new();
+        for column in covering {
+            let surface = source.surface_bounds(column)?;
+            let layers = source.surface_chunk_layers(column)?;
+            let layers = (*layers.start(), *layers.end());
+            let bounds = NodeBounds::new(&self.layout, column, &surface);
+            self.min_surface_radius = self.min_surface_radius.min(bounds.min_radius);
+            if let Some(node) = self.nodes.get_mut(&column) {
+                node.bounds = bounds;
+                node.layers = layers;
+            }
+            if let Some(leaf) = self.leaves.get_mut(&column) {
+                let old = leaf.1;
+                gained.extend((layers.0..=layers.1).filter(|l| *l < old.0 || *l > old.1).map(|l| column.chunk(l)));
+                leaf.1 = layers;
+            }
+            // Decide again with the new bounds at the next update.
+            self.schedule(column, 0.0);
+        }
+        Ok(gained)
+    }
+
     fn insert_node<S: VoxelSource + ?Sized>(&mut self, source: &S, column: ChunkColumn) -> Result<(), LodError> {
         if self.nodes.contains_key(&column) {
             return Ok(());
