@@ -303,8 +303,16 @@ fn lod_system(
 ) {
     let start = Instant::now();
     let planet = &*planet.0;
-    if lod.tree.update(planet, &view.camera).is_err() || lod.tree.cull(&view.camera).is_err() {
+    let Ok(changes) = lod.tree.update(planet, &view.camera) else { return };
+    if lod.tree.cull(&view.camera).is_err() {
         return;
+    }
+    // Chunks whose leaf is gone retire (drawn until their successors are
+    // ready); the tree says which, so nothing is scanned.
+    for key in &changes.removed {
+        if let Some(&entity) = index.0.get(key) {
+            commands.entity(entity).insert(Retiring);
+        }
     }
     for key in lod.tree.visible_chunks() {
         let Some(context) = lod.tree.context(key.column()) else { continue };
@@ -330,23 +338,20 @@ fn lod_system(
             }
         }
     }
-    // Chunks whose leaf is gone retire; chunks long out of view are freed.
-    let leaves: std::collections::HashSet<_> = lod.tree.leaves().into_iter().collect();
-    let mut freed = Vec::new();
-    for (&key, &entity) in &index.0 {
-        let Ok((chunk, retiring)) = chunks.get(entity) else { continue };
-        if !leaves.contains(&key.column()) {
-            if retiring {
-                continue;
+    // Chunks out of view for 300 frames are freed, so memory stays flat on
+    // a long flight (checked once a second at 60 fps, not every frame).
+    if frame.0.is_multiple_of(60) {
+        let mut freed = Vec::new();
+        for (&key, &entity) in &index.0 {
+            let Ok((chunk, retiring)) = chunks.get(entity) else { continue };
+            if !retiring && frame.0.saturating_sub(chunk.last_seen) > 300 {
+                freed.push(key);
+                commands.entity(entity).despawn();
             }
-            commands.entity(entity).insert(Retiring);
-        } else if frame.0.saturating_sub(chunk.last_seen) > 300 {
-            freed.push(key);
-            commands.entity(entity).despawn();
         }
-    }
-    for key in freed {
-        index.0.remove(&key);
+        for key in freed {
+            index.0.remove(&key);
+        }
     }
     times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
 }
