@@ -555,9 +555,7 @@ impl Offscreen {
 /// (near plane 0.1 m), Y up in NDC.
 #[must_use]
 pub fn view_projection(forward: DVec3, up: DVec3, fov_y_degrees: f32, aspect: f32) -> Mat4 {
-    let forward = forward.normalize();
-    let right = forward.cross(up).normalize();
-    let up = right.cross(forward);
+    let (forward, _, up) = nebula_math::view_basis(forward, up);
     let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward.as_vec3(), up.as_vec3());
     glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y_degrees.to_radians(), aspect, 0.1) * view
 }

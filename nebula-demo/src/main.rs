@@ -303,20 +303,23 @@ impl Windowed {
     /// The view basis at the eye: radial up, yaw around it, pitch above the
     /// local horizon.
     fn basis(&self) -> (DVec3, DVec3) {
-        let up = self.eye.normalize();
-        let reference = if up.cross(DVec3::Z).length() > 1e-3 { DVec3::Z } else { DVec3::X };
-        let north = (reference - up * reference.dot(up)).normalize();
-        let east = north.cross(up);
+        let (north, east, up) = self.local_frame();
         let heading = north * self.yaw.cos() + east * self.yaw.sin();
         let forward = heading * self.pitch.cos() + up * self.pitch.sin();
         (forward, up)
     }
 
-    fn set_forward(&mut self, forward: DVec3) {
+    /// North, east and up (radial) at the eye; "north" is towards +Z, or
+    /// +X right above a Z pole.
+    fn local_frame(&self) -> (DVec3, DVec3, DVec3) {
         let up = self.eye.normalize();
         let reference = if up.cross(DVec3::Z).length() > 1e-3 { DVec3::Z } else { DVec3::X };
         let north = (reference - up * reference.dot(up)).normalize();
-        let east = north.cross(up);
+        (north, north.cross(up), up)
+    }
+
+    fn set_forward(&mut self, forward: DVec3) {
+        let (north, east, up) = self.local_frame();
         self.pitch = forward.dot(up).clamp(-1.0, 1.0).asin().clamp(-1.55, 1.55);
         self.yaw = forward.dot(east).atan2(forward.dot(north));
     }

@@ -93,9 +93,7 @@ impl NodeBounds {
     /// with vertical field of view `fov_y_degrees` (no near or far plane).
     #[must_use]
     pub fn outside_frustum(&self, camera: &Camera, fov_y_degrees: f64) -> bool {
-        let forward = camera.forward.normalize();
-        let right = forward.cross(camera.up).normalize();
-        let up = right.cross(forward);
+        let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
         let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
         let tan_x = tan_y * camera.aspect;
         // Inward normals of the four side planes through the eye.

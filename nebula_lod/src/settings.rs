@@ -109,9 +109,7 @@ impl Camera {
     /// crack counting and ray-cast checks.
     #[must_use]
     pub fn pixel_ray(&self, fov_y_degrees: f64, (width, height): (u32, u32), (px, py): (u32, u32)) -> DVec3 {
-        let forward = self.forward.normalize();
-        let right = forward.cross(self.up).normalize();
-        let up = right.cross(forward);
+        let (forward, right, up) = nebula_math::view_basis(self.forward, self.up);
         let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
         let tan_x = tan_y * f64::from(width) / f64::from(height.max(1));
         let x = (2.0 * (f64::from(px) + 0.5) / f64::from(width.max(1)) - 1.0) * tan_x;

@@ -112,10 +112,10 @@ impl Cubesphere {
             return Err(MathError::OutsideFace { face, i, j, resolution: self.resolution });
         }
         let radius = self.layer_radius(layer as f64);
-        let layer = i32::try_from(layer).ok().filter(|_| radius > 0.0);
-        let Some(layer) = layer else {
-            return Err(MathError::LayerBelowCentre { layer: i64::from(layer.unwrap_or(i32::MIN)), radius });
+        let Some(layer_i32) = i32::try_from(layer).ok().filter(|_| radius > 0.0) else {
+            return Err(MathError::LayerBelowCentre { layer, radius });
         };
+        let layer = layer_i32;
         let cube = face.face_to_cube(i, j, n);
         // In range by the check above: every component is within ±N/2 ≤ 2²⁹.
         let cube = IVec3::new(cube.x as i32, cube.y as i32, cube.z as i32);
@@ -245,4 +245,14 @@ pub fn ray_sphere(origin: DVec3, dir: DVec3, radius: f64) -> Option<f64> {
     }
     let t = -b - disc.sqrt();
     (t > 0.0).then_some(t)
+}
+
+/// The right-handed view basis `(forward, right, up)` for a view direction
+/// and an up hint (neither need be unit; `up` need not be orthogonal): the
+/// one place cameras, culling and pixel rays get their axes from.
+#[must_use]
+pub fn view_basis(forward: DVec3, up: DVec3) -> (DVec3, DVec3, DVec3) {
+    let forward = forward.normalize();
+    let right = forward.cross(up).normalize();
+    (forward, right, right.cross(forward))
 }

@@ -320,3 +320,19 @@ fn rays_meet_spheres_where_expected() {
     let t = ray_sphere(eye, grazing, 6.0).unwrap();
     assert!(((eye + grazing * t).length() - 6.0).abs() < 1e-12);
 }
+
+#[test]
+fn view_basis_is_orthonormal_and_right_handed() {
+    let (f, r, u) = view_basis(DVec3::new(0.0, 0.0, -3.0), DVec3::new(0.2, 5.0, 0.1));
+    assert!((f - DVec3::NEG_Z).length() < 1e-12);
+    assert!((r - DVec3::X).length() < 0.05 && (r.length() - 1.0).abs() < 1e-12);
+    assert!(f.dot(u).abs() < 1e-12 && r.dot(u).abs() < 1e-12 && (u.length() - 1.0).abs() < 1e-12);
+    assert!((r.cross(u) - (-f)).length() < 1e-12, "right × up points back at the viewer");
+}
+
+#[test]
+fn a_layer_below_the_centre_is_reported_as_given() {
+    let p = planet(1024);
+    let error = p.lattice_point(CubeFace::PosX, 0, 0, -7_000_000).unwrap_err();
+    assert!(matches!(error, MathError::LayerBelowCentre { layer: -7_000_000, .. }), "{error:?}");
+}

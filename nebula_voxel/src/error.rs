@@ -19,6 +19,15 @@ pub enum VoxelError {
         /// The coarsest LOD of the planet.
         max_lod: u8,
     },
+    /// A lattice resolution that does not give 32-voxel chunks at the
+    /// requested LOD count.
+    #[error("lattice resolution {resolution} does not match the LOD count: it must be 32 · 2^max_lod = {expected}")]
+    ResolutionMismatch {
+        /// The sphere's resolution.
+        resolution: u32,
+        /// 32 · 2^max_lod.
+        expected: u32,
+    },
     /// Chunk coordinates outside the face at the key's LOD, or a radial
     /// layer at or below the planet centre.
     #[error("chunk {key:?} is out of range: {reason}")]

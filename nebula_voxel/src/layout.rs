@@ -105,11 +105,16 @@ impl ChunkLayout {
     /// A layout on `sphere`, whose resolution must be `32 · 2^max_lod`.
     ///
     /// # Errors
-    /// [`VoxelError::LodOutOfRange`] if `max_lod > MAX_LOD` or the resolution
-    /// does not match.
+    /// [`VoxelError::LodOutOfRange`] if `max_lod > MAX_LOD`;
+    /// [`VoxelError::ResolutionMismatch`] if the resolution is not
+    /// `32 · 2^max_lod`.
     pub fn new(sphere: Cubesphere, max_lod: u8) -> Result<Self, VoxelError> {
-        if max_lod > MAX_LOD || sphere.resolution() != CHUNK_SIZE << max_lod {
+        if max_lod > MAX_LOD {
             return Err(VoxelError::LodOutOfRange { lod: max_lod, max_lod: MAX_LOD });
+        }
+        let wanted = CHUNK_SIZE << max_lod;
+        if sphere.resolution() != wanted {
+            return Err(VoxelError::ResolutionMismatch { resolution: sphere.resolution(), expected: wanted });
         }
         Ok(Self { sphere, max_lod })
     }

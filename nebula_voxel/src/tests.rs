@@ -76,6 +76,17 @@ fn keys_and_arrays_are_checked() {
 }
 
 #[test]
+fn a_layout_checks_its_resolution() {
+    let sphere = nebula_math::Cubesphere::new(100.0, 64, 1.0, nebula_math::SphereMap::EquiAngular).unwrap();
+    assert!(ChunkLayout::new(sphere, 1).is_ok());
+    assert!(matches!(
+        ChunkLayout::new(sphere, 3),
+        Err(VoxelError::ResolutionMismatch { resolution: 64, expected: 256 })
+    ));
+    assert!(matches!(ChunkLayout::new(sphere, MAX_LOD + 1), Err(VoxelError::LodOutOfRange { .. })));
+}
+
+#[test]
 fn earth_sized_planet_is_valid() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
     let layout = earth.layout();
