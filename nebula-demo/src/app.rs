@@ -403,7 +403,11 @@ fn collect_meshes_system(
             continue;
         }
         let Ok(mesh) = done.result else { continue };
-        let error = planet.0.geometric_error(chunk.key.lod);
+        // μ follows the error of the LOD the chunk merges into; the
+        // coarsest LOD has none and never morphs.
+        let layout = planet.0.layout();
+        let error =
+            if chunk.key.lod >= layout.max_lod() { f64::from(f32::MAX) } else { layout.voxel_edge(chunk.key.lod + 1) };
         let uploaded = Uploaded {
             mesh: gpu.0.upload(&mesh, error),
             triangles: mesh.triangle_count(),

@@ -10,7 +10,7 @@ struct Frame {
 };
 
 struct Chunk {
-    // xyz: chunk origin − camera (computed in f64 on the CPU), w: δ(L) in metres.
+    // xyz: chunk origin − camera (computed in f64 on the CPU), w: δ of the parent LOD in metres.
     offset: vec4<f32>,
     // x: LOD, y: max LOD, z: chunk id (for colouring).
     info: vec4<f32>,
@@ -35,14 +35,15 @@ struct VertexOut {
     @location(3) morph: f32,
 };
 
-// μ = smoothstep(clamp((ρ/τ − 0.5) / 0.5, 0, 1)), ρ = δ·K / D: 1 where this
-// LOD is needed, 0 where the coarser one would do. Every input is global or a
-// function of the vertex position, so vertices shared by neighbouring chunks
-// morph identically.
+// μ = smoothstep(clamp((ρ_p/τ − 1) / (1.4 − 1), 0, 1)), ρ_p = δ_parent·K / D:
+// the twin of nebula_math::morph_factor. δ_parent is the error of the LOD the
+// chunk merges into: 1 where this LOD is needed, 0 where the parent would do.
+// Every input is global or a function of the vertex position, so vertices
+// shared by neighbouring chunks morph identically.
 fn morph_factor(relative: vec3<f32>) -> f32 {
     let distance = max(length(relative), 1e-3);
     let rho = chunk.offset.w * frame.params.x / distance;
-    let x = clamp((rho / frame.params.y - 0.5) / 0.5, 0.0, 1.0);
+    let x = clamp((rho / frame.params.y - 1.0) / 0.4, 0.0, 1.0);
     return x * x * (3.0 - 2.0 * x);
 }
 

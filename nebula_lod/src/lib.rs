@@ -7,6 +7,12 @@
 //! projected error ρ = δ(L)·K/D exceeds τ (seed `001`; D = distance from
 //! the camera to the node's box, which spans the node's surface bounds from
 //! the voxel source) and merges a split node once ρ < τ·(1 − hysteresis).
+//! δ(L) is the voxel edge at `L` (`ChunkLayout::voxel_edge`): τ is the
+//! largest size, in pixels, of a drawn voxel, which is what a player sees
+//! of detail (the surface's worst-case distance to LOD 0,
+//! `VoxelSource::geometric_error`, sizes the skirts instead). It doubles
+//! from one LOD to the next, which the geomorph relies on (`nebula_math`'s
+//! `morph_factor`).
 //! It reports the leaf chunks added and removed and the leaves whose
 //! neighbour relations changed ([`LodChanges`]), so a renderer re-meshes
 //! only those. Relations cover chunk edges, cube-face edges and corners and

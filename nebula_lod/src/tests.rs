@@ -123,7 +123,7 @@ fn pos_z_root() -> (ChunkColumn, f64, impl Fn(&LodTree) -> bool) {
     let screen = settings(BalanceMode::Unrestricted).screen_space().unwrap();
     let max_lod = source.layout().max_lod();
     let root = ChunkColumn { face: CubeFace::PosZ, lod: max_lod, x: 0, y: 0 };
-    let split_distance = screen.transition_distance(source.geometric_error(max_lod));
+    let split_distance = screen.transition_distance(source.layout().voxel_edge(max_lod));
     (root, split_distance, move |t: &LodTree| t.leaves().iter().any(|c| c.face == CubeFace::PosZ && c.lod < max_lod))
 }
 

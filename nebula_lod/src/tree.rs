@@ -112,7 +112,10 @@ impl LodTree {
         if settings.finest_lod > layout.max_lod() {
             return Err(LodError::BadFinestLod { finest_lod: settings.finest_lod, max_lod: layout.max_lod() });
         }
-        let errors = (0..=layout.max_lod()).map(|lod| source.geometric_error(lod)).collect();
+        // The error a node projects is its voxel edge: a leaf is split once
+        // its voxels would subtend more than τ pixels (see `nebula_voxel`'s
+        // `ChunkLayout::voxel_edge`; the geomorph shader uses the same).
+        let errors = (0..=layout.max_lod()).map(|lod| layout.voxel_edge(lod)).collect();
         let mut tree = Self {
             settings,
             screen,

@@ -6,10 +6,37 @@
 //!   ρ = δ·K / D                       projected error in pixels of a chunk with
 //!                                     geometric error δ seen from distance D
 //!   D_τ = δ·K / τ                     distance at which ρ reaches the threshold τ
-//!   μ = smoothstep(clamp((ρ/τ − 0.5) / 0.5, 0, 1))
-//!                                     morph factor: 0 where the coarse level is
-//!                                     good enough, 1 where the fine one is needed
+//!   μ = smoothstep(clamp((ρ_p/τ − 1) / (M − 1), 0, 1)),  M = MORPH_FULL
+//!                                     morph factor of a leaf, from ρ_p, the
+//!                                     projected error of its *parent* (the
+//!                                     LOD it would merge into): 0 where the
+//!                                     parent is good enough, 1 where the leaf
+//!                                     is needed
 //! ```
+//!
+//! Why the parent's error drives μ (not the leaf's own): the finest LOD has
+//! no error of its own, so a leaf-driven μ pins every LOD-0 chunk at its
+//! morph target and the voxels next to the camera are never drawn as they
+//! are. With the parent's error:
+//!
+//! ```text
+//!   ρ_p/τ:   ≤ 1−h ........ 1 .......... M ......... 2 ....... ∞
+//!   tree:    merge here     split here   (a leaf exists between the two)
+//!   μ:       0              0            1           1         1
+//! ```
+//!
+//! - At the merge (ρ_p < τ(1 − h)) μ = 0 at every vertex (a vertex is never
+//!   nearer than its node's bounds), so the leaf looks exactly like the
+//!   parent that replaces it.
+//! - At the split (ρ_p just above τ) the new children start at μ ≈ 0, i.e.
+//!   as their parent, and reach their true geometry at ρ_p = M·τ.
+//! - LOD 0 next to the camera has ρ_p ≫ M·τ: μ = 1, drawn exactly.
+//!
+//! `M` = [`MORPH_FULL`] = 1.4 leaves room for the far side of a chunk: the
+//! parent must be fully unmorphed (μ = 1 at all its vertices) when its
+//! children merge into it, where ρ of the grandparent is 2τ(1 − h) = 1.6τ
+//! at the nearest point and less farther away (see the pop test in
+//! `nebula_tests`).
 
 use crate::error::{MathError, finite, positive};
 
@@ -60,11 +87,13 @@ impl ScreenSpace {
         geometric_error * self.k / self.threshold_px
     }
 
-    /// Geomorph factor μ in [0, 1] for a vertex with geometric error δ at
-    /// distance D: see [`morph_factor`].
+    /// Geomorph factor μ in [0, 1] of a vertex at `distance` from the eye in
+    /// a leaf whose parent has error `parent_error` (metres): see
+    /// [`morph_factor`]. The shader's `morph_factor` is this function in
+    /// f32.
     #[must_use]
-    pub fn morph_factor(&self, geometric_error: f64, distance: f64) -> f64 {
-        morph_factor(self.projected_error(geometric_error, distance) / self.threshold_px)
+    pub fn morph_factor(&self, parent_error: f64, distance: f64) -> f64 {
+        morph_factor(self.projected_error(parent_error, distance) / self.threshold_px)
     }
 }
 
@@ -95,13 +124,21 @@ fn check_fov(fov_y_degrees: f64) -> Result<f64, MathError> {
     if fov > 0.0 && fov < 180.0 { Ok(fov) } else { Err(MathError::FovOutOfRange { degrees: fov }) }
 }
 
-/// Morph factor μ = smoothstep(clamp((r − 0.5) / 0.5, 0, 1)) for a projected
-/// error `r` = ρ/τ in units of the threshold. 0 at or below half the
-/// threshold (fully coarse), 1 at or above it (fully fine). NaN gives 0.
+/// Where a leaf reaches its true geometry: μ = 1 once its parent's
+/// projected error is `MORPH_FULL`·τ (see the module docs for the choice).
+pub const MORPH_FULL: f64 = 1.4;
+
+/// Morph factor μ = smoothstep(clamp((r − 1) / (M − 1), 0, 1)) for
+/// `parent_error_over_threshold` r = ρ_p/τ, the projected error of the
+/// leaf's parent in units of the threshold, M = [`MORPH_FULL`]. 0 at or
+/// below the split threshold (the leaf looks like its parent), 1 at or above
+/// M (the leaf's own geometry). +∞ (no parent: the coarsest LOD, or the
+/// camera touching the chunk) gives 1; NaN gives 1 as well, so bad input
+/// never hides the true voxels.
 #[must_use]
-pub fn morph_factor(error_over_threshold: f64) -> f64 {
-    let x = ((error_over_threshold - 0.5) / 0.5).clamp(0.0, 1.0);
-    if x.is_nan() { 0.0 } else { x * x * (3.0 - 2.0 * x) }
+pub fn morph_factor(parent_error_over_threshold: f64) -> f64 {
+    let x = ((parent_error_over_threshold - 1.0) / (MORPH_FULL - 1.0)).clamp(0.0, 1.0);
+    if x.is_nan() { 1.0 } else { x * x * (3.0 - 2.0 * x) }
 }
 
 /// Distance to the horizon, √(2·R·h + h²), for an eye `height` metres above
@@ -159,20 +196,41 @@ mod tests {
     #[test]
     fn morph_factor_shape() {
         assert_eq!(morph_factor(0.0), 0.0);
-        assert_eq!(morph_factor(0.5), 0.0);
-        assert_eq!(morph_factor(0.75), 0.5);
-        assert_eq!(morph_factor(1.0), 1.0);
-        assert_eq!(morph_factor(7.0), 1.0);
-        assert_eq!(morph_factor(f64::NAN), 0.0);
-        // Smooth: zero slope at both ends.
+        assert_eq!(morph_factor(0.8), 0.0, "at the merge threshold (hysteresis 0.2)");
+        assert_eq!(morph_factor(1.0), 0.0, "at the split threshold");
+        assert!((morph_factor(1.2) - 0.5).abs() < 1e-12);
+        assert_eq!(morph_factor(MORPH_FULL), 1.0);
+        assert_eq!(morph_factor(2.0), 1.0);
+        assert_eq!(morph_factor(f64::INFINITY), 1.0, "no parent: true geometry");
+        assert_eq!(morph_factor(f64::NAN), 1.0);
+        // Monotone and smooth: zero slope at both ends.
         let h = 1e-6;
-        assert!((morph_factor(0.5 + h) - morph_factor(0.5)) / h < 1e-4);
-        assert!((morph_factor(1.0) - morph_factor(1.0 - h)) / h < 1e-4);
-        let sse = ScreenSpace::new(1024.0, 12.0, 2.0).unwrap();
-        // ρ = τ → fully fine; ρ = τ/2 → fully coarse.
-        let d = sse.transition_distance(0.1);
-        assert!((sse.morph_factor(0.1, d) - 1.0).abs() < 1e-9);
-        assert!(sse.morph_factor(0.1, 2.0 * d) < 1e-9);
+        assert!((morph_factor(1.0 + h) - morph_factor(1.0)) / h < 1e-4);
+        assert!((morph_factor(MORPH_FULL) - morph_factor(MORPH_FULL - h)) / h < 1e-4);
+        let samples: Vec<f64> = (0..=300).map(|i| morph_factor(f64::from(i) / 100.0)).collect();
+        assert!(samples.windows(2).all(|w| w[0] <= w[1]));
+    }
+
+    #[test]
+    fn morph_factor_at_every_lod_from_the_parents_error() {
+        // A leaf at LOD L with voxel edge e·2^L: its parent's error is the
+        // parent's voxel edge e·2^(L+1). For every LOD, a vertex where the
+        // parent's projected error is ≥ 2τ is drawn as it is (μ = 1), and at
+        // the merge threshold τ(1 − h) it matches the parent (μ = 0).
+        let sse = ScreenSpace::new(720.0, 60.0, 1.0).unwrap();
+        let edge = 1.19;
+        let hysteresis = 0.2;
+        for lod in 0..=18 {
+            let parent_error = edge * f64::from(1u32 << (lod + 1));
+            let at = |ratio: f64| sse.morph_factor(parent_error, parent_error * sse.k() / (ratio * 1.0));
+            assert_eq!(at(2.0), 1.0, "LOD {lod}: parent error 2τ");
+            assert_eq!(at(5.0), 1.0, "LOD {lod}: parent error 5τ");
+            assert!(at(1.0 - hysteresis) < 1e-12, "LOD {lod}: merge threshold");
+            assert!(at(1.0) < 1e-12, "LOD {lod}: split threshold");
+        }
+        // LOD 0 a few metres from the camera: exact voxels.
+        assert_eq!(sse.morph_factor(2.0 * edge, 5.0), 1.0);
+        assert_eq!(sse.morph_factor(2.0 * edge, 0.0), 1.0, "camera on the vertex");
     }
 
     #[test]

@@ -22,16 +22,21 @@ pub struct MeshVertex {
     /// Unit normal. Skirt vertices carry the normal of the surface vertex
     /// they hang from (normal locking).
     pub normal: Vec3,
-    /// Geomorph target relative to the mesh origin: the vertex snapped to
-    /// the parent LOD's lattice (even local coordinates). Constrained
-    /// vertices keep their position. Same-LOD neighbours share targets, so
-    /// their seams stay closed while morphing; across a LOD boundary the
-    /// coarser side's edge may move while the finer side's does not, and
-    /// the skirts (which morph with the vertex above them) cover the gap.
+    /// Geomorph target relative to the mesh origin: where the vertex lies
+    /// on the parent LOD's surface. For a lattice vertex that is the vertex
+    /// with every local coordinate rounded down to even, which by the voxel
+    /// LOD rule (`nebula_voxel`: a coarse voxel is its far-corner fine
+    /// voxel) makes a fully morphed chunk coincide with its parent. A
+    /// constrained vertex targets the same chord between its segment's two
+    /// (morphed) ends. Same-LOD neighbours share targets, so their seams
+    /// stay closed while morphing; across a LOD boundary the skirts, sized
+    /// for every morph state, cover the gap.
     pub morph_target: Vec3,
     /// Voxel material id of the face.
     pub material: u16,
-    /// Bit set of [`MeshVertex::SKIRT`] and [`MeshVertex::CONSTRAINED`].
+    /// Bit set of [`MeshVertex::SKIRT`] and [`MeshVertex::CONSTRAINED`],
+    /// and for a skirt vertex the side it hangs on
+    /// ([`MeshVertex::skirt_side`]).
     pub flags: u16,
 }
 
@@ -40,6 +45,22 @@ impl MeshVertex {
     pub const SKIRT: u16 = 1;
     /// The vertex was moved onto a coarser neighbour's edge.
     pub const CONSTRAINED: u16 = 2;
+    /// Bits 2–3 of a skirt vertex's flags: which horizontal side it hangs
+    /// on, as an index into [`FaceDirection::HORIZONTAL`].
+    pub const SIDE_SHIFT: u16 = 2;
+
+    /// The side a skirt vertex hangs on; `None` for other vertices.
+    #[must_use]
+    pub fn skirt_side(&self) -> Option<FaceDirection> {
+        (self.flags & Self::SKIRT != 0)
+            .then(|| FaceDirection::HORIZONTAL[usize::from((self.flags >> Self::SIDE_SHIFT) & 3)])
+    }
+
+    /// The flags of a skirt vertex on `side`.
+    pub(crate) fn skirt_flags(side: FaceDirection) -> u16 {
+        let index = FaceDirection::HORIZONTAL.iter().position(|&s| s == side).unwrap_or(0) as u16;
+        Self::SKIRT | (index << Self::SIDE_SHIFT)
+    }
 }
 
 /// One edge of a mesh's outline on a side (see [`ChunkMesh::outline`]).
@@ -85,6 +106,9 @@ pub struct ChunkMesh {
     /// `indices[..surface_index_count]` are the surface triangles.
     pub(crate) surface_index_count: usize,
     pub(crate) skirt_triangles: usize,
+    /// Depth of the skirt generated on each horizontal side (index as in
+    /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none.
+    pub(crate) skirt_depths: [f32; 4],
 }
 
 impl ChunkMesh {
@@ -101,7 +125,17 @@ impl ChunkMesh {
             indices: Vec::new(),
             surface_index_count: 0,
             skirt_triangles: 0,
+            skirt_depths: [0.0; 4],
         }
+    }
+
+    /// The depth each side's skirt was generated with (index as in
+    /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none. A
+    /// renderer may draw skirts at other depths (see
+    /// [`RenderVertex`](crate::RenderVertex)).
+    #[must_use]
+    pub fn skirt_depths(&self) -> [f32; 4] {
+        self.skirt_depths
     }
 
     /// The chunk this mesh belongs to.
@@ -234,13 +268,28 @@ impl ChunkMesh {
         index
     }
 
-    /// Moves vertex `index` to `world` (f64), keeping its morph target on it.
-    pub(crate) fn move_vertex(&mut self, index: usize, world: DVec3) {
+    /// Moves vertex `index` to `world` (f64) with morph target `morph`, and
+    /// marks it constrained.
+    pub(crate) fn move_vertex(&mut self, index: usize, world: DVec3, morph: DVec3) {
         self.world[index] = world;
-        self.morph_world[index] = world;
+        self.morph_world[index] = morph;
         self.vertices[index].position = relative_position(world, self.origin);
-        self.vertices[index].morph_target = self.vertices[index].position;
+        self.vertices[index].morph_target = relative_position(morph, self.origin);
         self.vertices[index].flags |= MeshVertex::CONSTRAINED;
+    }
+
+    /// The f64 world position of vertex `index`'s morph target.
+    #[must_use]
+    pub fn morph_world_position(&self, index: usize) -> Option<DVec3> {
+        self.morph_world.get(index).copied()
+    }
+
+    /// The vertex a skirt vertex hangs from.
+    pub(crate) fn skirt_top(&self, index: usize) -> Option<u32> {
+        match self.sources.get(index)? {
+            VertexSource::Skirt { top } => Some(*top),
+            _ => None,
+        }
     }
 
     /// Local lattice coordinates of surface vertex `index`.

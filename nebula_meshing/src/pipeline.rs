@@ -8,20 +8,36 @@ use rayon::prelude::*;
 use crate::mesh::ChunkMesh;
 use crate::{ChunkMesher, MeshError, constrain_edge_vertices, generate_skirt, skirt_depth};
 
-/// Which seam passes run. Both are on by default; switching them off is for
-/// measuring what they fix.
+/// Which seam passes run. Constraining and skirts are on by default;
+/// switching them off is for measuring what they fix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MeshOptions {
     /// Move boundary vertices onto coarser neighbours' edges.
     pub constrain_edges: bool,
     /// Hang skirts on edges that meet another LOD.
     pub skirts: bool,
+    /// Hang a skirt on every horizontal side whatever the context, with
+    /// depth 0, for the renderer to lower per side at draw time from the
+    /// LODs it draws next to the chunk (see [`RenderVertex`](crate::RenderVertex)).
+    /// The mesh then does not depend on its neighbours' LODs: a streamer
+    /// swaps chunks without re-meshing their neighbours. Overrides `skirts`.
+    pub draw_time_skirts: bool,
 }
 
 impl Default for MeshOptions {
     fn default() -> Self {
-        Self { constrain_edges: true, skirts: true }
+        Self { constrain_edges: true, skirts: true, draw_time_skirts: false }
     }
+}
+
+impl MeshOptions {
+    /// No constraining, no skirts: the bare surface, for measuring what the
+    /// seam passes fix.
+    pub const NO_SEAMS: Self = Self { constrain_edges: false, skirts: false, draw_time_skirts: false };
+
+    /// Context-free meshes for streaming: no constraining, a skirt on
+    /// every side whose depth the renderer chooses per frame.
+    pub const STREAMING: Self = Self { constrain_edges: false, skirts: true, draw_time_skirts: true };
 }
 
 /// Reusable memory for meshing chunk after chunk on one thread: the padded
@@ -81,7 +97,12 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
             constrain_edge_vertices(&mut mesh, side, lod_diff)?;
         }
     }
-    if options.skirts {
+    if options.draw_time_skirts {
+        let center = mesh.planet_center();
+        for side in FaceDirection::HORIZONTAL {
+            generate_skirt(&mut mesh, side, 0.0, &center)?;
+        }
+    } else if options.skirts {
         for side in FaceDirection::HORIZONTAL {
             let coarse_lod = match context.relation(side) {
                 NeighborLodRelation::Same => continue,

@@ -20,7 +20,10 @@ use crate::mesh::{ChunkMesh, MeshVertex, VertexSource, along_axis};
 /// the f64 lerp of the two canonical lattice positions at the same height,
 /// by its fraction along the segment. The lattice identity of the vertex is
 /// kept, so the chunk's own topology (and its T-junction-freedom) is
-/// unchanged.
+/// unchanged. Its morph target is the same lerp between the two ends'
+/// morph targets (both at the vertex's height rounded down to even), so a
+/// morphing edge stays a chord between the points its unconstrained
+/// neighbours morph to, with no sawtooth.
 ///
 /// # Errors
 /// [`MeshError::LodDiffOutOfRange`] for `lod_diff` 0 or past the planet's
@@ -47,20 +50,25 @@ pub fn constrain_edge_vertices(mesh: &mut ChunkMesh, edge: FaceDirection, lod_di
         if coord == lower {
             continue;
         }
-        // The two coarse vertices, as face lattice points at this height.
-        let at = |c: i64| -> Result<DVec3, MeshError> {
+        // The two coarse vertices, as face lattice points at height `y`
+        // (local, at the chunk's LOD).
+        let at = |c: i64, y: i32| -> Result<DVec3, MeshError> {
             let mut global = [
                 i64::from(key.x) * i64::from(CHUNK_SIZE) + i64::from(local[0]),
-                i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1]),
+                i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(y),
                 i64::from(key.y) * i64::from(CHUNK_SIZE) + i64::from(local[2]),
             ];
             global[along] = c;
             let point = sphere.lattice_point(key.face, global[0] * span, global[2] * span, global[1] * span)?;
             Ok(sphere.position(point))
         };
-        let (low, high) = (at(lower)?, at(lower + step)?);
         let t = (coord - lower) as f64 / step as f64;
-        mesh.move_vertex(index, low + (high - low) * t);
+        let (low, high) = (at(lower, local[1])?, at(lower + step, local[1])?);
+        // `step` ≥ 2, so both ends are even along the edge: their morph
+        // targets differ from them in height only.
+        let even_y = local[1] - local[1].rem_euclid(2);
+        let (morph_low, morph_high) = (at(lower, even_y)?, at(lower + step, even_y)?);
+        mesh.move_vertex(index, low + (high - low) * t, morph_low + (morph_high - morph_low) * t);
     }
     Ok(())
 }
@@ -97,6 +105,7 @@ pub fn generate_skirt(
     }
     let center = mesh.origin + planet_center.as_dvec3();
     let depth = f64::from(skirt_depth);
+    mesh.skirt_depths[crate::side_index(edge)] = skirt_depth;
     let mut lower: HashMap<u32, u32> = HashMap::new();
     let mut bottom_of = |mesh: &mut ChunkMesh, top: u32| -> u32 {
         *lower.entry(top).or_insert_with(|| {
@@ -110,7 +119,7 @@ pub fn generate_skirt(
                 morph,
                 vertex.normal,
                 vertex.material,
-                MeshVertex::SKIRT,
+                MeshVertex::skirt_flags(edge),
                 VertexSource::Skirt { top },
             )
         })
@@ -125,27 +134,33 @@ pub fn generate_skirt(
 }
 
 /// How deep a skirt must hang on an edge between a chunk at `fine_lod` and
-/// one at `coarse_lod`, in metres:
+/// one at `coarse_lod`, in metres, for every geomorph state of both:
 ///
 /// ```text
-///   depth = δ(fine) + δ(coarse) + sagitta(coarse) + bias
+///   depth = δ(fine + 1) + δ(coarse + 1) + sagitta(coarse + 1) + bias
 ///   sagitta(L) = (1.5 · 2^L · cell width)² / (8 · radius)   chord sag of one
 ///                                                          coarse voxel edge
 ///   bias = one voxel at the fine LOD
+///   (LODs past the planet's coarsest are clamped to it: it never morphs)
 /// ```
 ///
 /// δ(L) bounds how far each LOD's voxel surface lies from the LOD-0 surface
-/// radially (see `nebula_voxel::ProceduralPlanet`), so the two surfaces
-/// differ by at most δ(fine) + δ(coarse) anywhere along the edge. Constrained
-/// vertices sit on coarse chords, which sag below the sphere by up to the
-/// sagitta (1.5 covers the longest equi-angular cell edge, √2 × the
-/// shortest). The bias absorbs the staircase of the voxel surface itself.
+/// radially (see `nebula_voxel::ProceduralPlanet`). A chunk at LOD `L`
+/// morphing towards its parent lies between its own surface and the
+/// parent's, so within δ(L + 1); the two sides of the edge differ by at most
+/// δ(fine + 1) + δ(coarse + 1) anywhere along it. Coarse edges, morphed or
+/// not, are chords that sag below the sphere by up to the sagitta (1.5
+/// covers the longest equi-angular cell edge, √2 × the shortest). The bias
+/// absorbs the staircase of the voxel surface itself. The order of the two
+/// LODs does not matter.
 #[must_use]
 pub fn skirt_depth<S: VoxelSource + ?Sized>(source: &S, fine_lod: u8, coarse_lod: u8) -> f64 {
     let layout = source.layout();
     let sphere = layout.sphere();
-    let chord = 1.5 * layout.voxel_span(coarse_lod) as f64 * sphere.cell_width();
+    let (fine_lod, coarse_lod) = (fine_lod.min(coarse_lod), fine_lod.max(coarse_lod));
+    let morphed = |lod: u8| lod.saturating_add(1).min(layout.max_lod());
+    let chord = 1.5 * layout.voxel_span(morphed(coarse_lod)) as f64 * sphere.cell_width();
     let sagitta = chord * chord / (8.0 * sphere.radius());
     let bias = layout.voxel_span(fine_lod) as f64 * sphere.layer_height();
-    source.geometric_error(fine_lod) + source.geometric_error(coarse_lod) + sagitta + bias
+    source.geometric_error(morphed(fine_lod)) + source.geometric_error(morphed(coarse_lod)) + sagitta + bias
 }

@@ -2,18 +2,17 @@
 //!
 //! Edits are made at LOD 0 and kept in an overlay beside the source, which is
 //! never modified: regenerating a chunk re-reads the overlay, so an edit
-//! cannot be lost. Coarser LODs see edits through the same rule a coarse
-//! voxel would get from its `s³` fine voxels by majority: the overlay counts,
-//! per coarse voxel, how many of its fine voxels the edits turned solid minus
-//! how many they turned to air (`net`), and
+//! cannot be lost. Coarser LODs see edits through the planet's own LOD rule
+//! (see `ProceduralPlanet`): a voxel at LOD `L` is the LOD-0 voxel in its far
+//! corner, so
 //!
 //! ```text
-//!   solid fine voxels ≈ (base coarse voxel solid ? s³ : 0) + net
-//!   coarse voxel solid  ⇔  that count > s³ / 2
+//!   edited_L(a, b, c) = edited_0((a+1)·s − 1, (b+1)·s − 1, (c+1)·s − 1)
 //! ```
 //!
-//! A single dug voxel therefore disappears at LOD 0 only, while a crater
-//! shows at every LOD whose voxels are smaller than about twice the crater.
+//! and a fully geomorphed finer chunk still matches its parent after any
+//! edit. A single dug voxel shows at LOD `L` only if it is that corner; a
+//! crater shows at every LOD whose voxels are smaller than about the crater.
 
 use std::collections::{BTreeSet, HashMap, HashSet};
 
@@ -25,23 +24,12 @@ use crate::{
 };
 use ndshape::ConstShape;
 
-/// Edit counts of one coarse voxel.
-#[derive(Clone, Copy, Debug, Default)]
-struct CoarseEdit {
-    /// Fine voxels turned solid minus fine voxels turned to air.
-    net_solid: i64,
-    /// Material of the latest solid fine voxel written inside.
-    fill: Voxel,
-}
-
 /// A [`VoxelSource`] with LOD-0 edits on top (see the module docs).
 #[derive(Debug)]
 pub struct EditedSource<S> {
     base: S,
     /// LOD-0 voxels that differ from `base`.
     fine: HashMap<VoxelCoord, Voxel>,
-    /// Per LOD 1..=max (index L − 1): edit counts of coarse voxels.
-    coarse: Vec<HashMap<VoxelCoord, CoarseEdit>>,
     /// Chunks (any LOD) whose padded region holds a voxel the edits changed.
     touched_chunks: HashSet<ChunkKey>,
     /// Per column (any LOD): lowest and highest LOD-0 layer edited inside.
@@ -51,11 +39,9 @@ pub struct EditedSource<S> {
 impl<S: VoxelSource> EditedSource<S> {
     /// Wraps `base` with no edits yet.
     pub fn new(base: S) -> Self {
-        let lods = usize::from(base.layout().max_lod());
         Self {
             base,
             fine: HashMap::new(),
-            coarse: vec![HashMap::new(); lods],
             touched_chunks: HashSet::new(),
             touched_columns: HashMap::new(),
         }
@@ -153,29 +139,24 @@ impl<S: VoxelSource> EditedSource<S> {
         if old == voxel {
             return Ok(());
         }
-        // Coarse voxels that contain `at`, and their values before.
-        let mut chain = Vec::with_capacity(self.coarse.len());
-        let mut cell = at;
-        for _ in 0..self.coarse.len() {
-            cell = cell.parent();
-            chain.push((cell, self.voxel(cell)?));
-        }
         if self.base.voxel(at)? == voxel {
             self.fine.remove(&at);
         } else {
             self.fine.insert(at, voxel);
         }
-        let delta = i64::from(voxel.is_solid()) - i64::from(old.is_solid());
-        self.mark_changed(&layout, at, dirty);
-        for (level, &(cell, before)) in chain.iter().enumerate() {
-            let entry = self.coarse[level].entry(cell).or_default();
-            entry.net_solid += delta;
-            if voxel.is_solid() {
-                entry.fill = voxel;
+        // The voxel is itself the voxel at every LOD where it is the far
+        // corner of its cell (all three indices ≡ −1 mod 2^L).
+        let mut cell = at;
+        for lod in 0..=layout.max_lod() {
+            if lod > 0 {
+                let span = layout.voxel_span(lod);
+                let corner = |index: i64| (index + 1).rem_euclid(span) == 0;
+                if !(corner(at.i.into()) && corner(at.j.into()) && corner(at.h.into())) {
+                    break;
+                }
+                cell = cell.parent();
             }
-            if self.voxel(cell)? != before {
-                self.mark_changed(&layout, cell, dirty);
-            }
+            self.mark_changed(&layout, cell, dirty);
         }
         Ok(())
     }
@@ -213,20 +194,22 @@ impl<S: VoxelSource> EditedSource<S> {
         }
     }
 
-    /// The effective voxel given the base's value for the same coordinates.
+    /// The effective voxel given the base's value for the same coordinates:
+    /// the edited LOD-0 voxel in its far corner, if there is one.
     fn edited(&self, at: VoxelCoord, base: Voxel) -> Voxel {
-        if at.lod == 0 {
-            return self.fine.get(&at).copied().unwrap_or(base);
+        if self.fine.is_empty() {
+            return base;
         }
-        let Some(edit) = self.coarse[usize::from(at.lod) - 1].get(&at) else { return base };
-        // i128: s³ = 2^(3·LOD) passes i64 at LOD 21.
-        let volume = 1i128 << (3 * u32::from(at.lod));
-        let solid = if base.is_solid() { volume } else { 0 } + i128::from(edit.net_solid);
-        match (2 * solid > volume, base.is_solid()) {
-            (true, true) => base,
-            (true, false) => edit.fill,
-            (false, _) => Voxel::AIR,
-        }
+        let span = self.base.layout().voxel_span(at.lod);
+        let corner = |index: i64| (index + 1) * span - 1;
+        let fine = VoxelCoord {
+            lod: 0,
+            i: corner(at.i.into()) as u32,
+            j: corner(at.j.into()) as u32,
+            h: corner(at.h.into()) as i32,
+            ..at
+        };
+        self.fine.get(&fine).copied().unwrap_or(base)
     }
 }
 

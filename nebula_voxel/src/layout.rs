@@ -131,10 +131,19 @@ impl ChunkLayout {
         self.max_lod
     }
 
-    /// Lattice cells (and radial layers) per voxel at `lod`: 2^lod.
+    /// Lattice cells (and radial layers) per voxel at `lod`: 2^lod. LODs
+    /// past 62 (never a planet's) saturate at 2^62 instead of overflowing.
     #[must_use]
     pub fn voxel_span(&self, lod: u8) -> i64 {
-        1 << lod
+        1 << lod.min(62)
+    }
+
+    /// The edge of a voxel at `lod`, metres (2^lod layer heights): what the
+    /// LOD selection projects to the screen. A coarse LOD is drawn where
+    /// its voxels subtend at most τ pixels.
+    #[must_use]
+    pub fn voxel_edge(&self, lod: u8) -> f64 {
+        self.sphere.layer_height() * (self.voxel_span(lod) as f64)
     }
 
     /// Voxel columns along each face edge at `lod`.

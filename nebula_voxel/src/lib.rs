@@ -8,15 +8,16 @@
 //! ([`PaddedChunkShape`]).
 //!
 //! Choices:
-//! - **Point sampling for LODs**: a coarse voxel is solid iff its centre is
-//!   below the terrain at its column centre (see [`ProceduralPlanet`]). Any
-//!   LOD is generated directly at the same cost per chunk; the error bound
-//!   δ(L) = (s/2 + 1/2 + S·(s − 1)) layers (s = 2^L, S = steepest slope,
-//!   measured by sampling) is derived and tested in [`ProceduralPlanet`]'s
-//!   docs.
+//! - **LODs by the far-corner rule**: a coarse voxel *is* the LOD-0 voxel in
+//!   its far corner (see [`ProceduralPlanet`]), so a finer chunk collapsed
+//!   by the geomorph (coordinates rounded down to even) is exactly its
+//!   parent. Any LOD is generated directly at the same cost per chunk; the
+//!   error bound δ(L) = (s + 2·S·(s − 1)) layers (s = 2^L, S = steepest
+//!   slope, measured by sampling) is derived and tested in
+//!   [`ProceduralPlanet`]'s docs.
 //! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
-//!   voxels plus per-LOD majority counts, so coarse LODs follow and nothing
-//!   is lost when chunks are regenerated.
+//!   voxels, seen by coarse LODs through the same far-corner rule, so
+//!   nothing is lost when chunks are regenerated.
 //! - **Noise**: the `noise` crate's Perlin fBm and ridged multifractal,
 //!   evaluated on the sphere so terrain is seamless across faces.
 //!

@@ -18,32 +18,53 @@
 //! The hills give the metre-scale relief a player walks on; without them a
 //! planet-sized landform is flat over any one chunk.
 //!
-//! # LOD sampling rule
+//! # LOD sampling rule: the far-corner voxel
 //!
 //! A voxel at LOD `L` is `s = 2^L` lattice cells wide and `s` radial layers
-//! tall. It is decided by **point sampling at its centre**: solid iff its
-//! centre lies below `H` at the centre of its column. So no coarse voxel is
-//! ever built from the `s³` fine voxels below it (a LOD-18 chunk would need
-//! 10¹⁸ of them), and every LOD is a direct, deterministic function of the
-//! noise.
+//! tall. It **is** one LOD-0 voxel: the one in its far corner (largest `i`,
+//! `j` and layer inside it),
+//!
+//! ```text
+//!   voxel_L(a, b, c) = voxel_0((a+1)·s − 1, (b+1)·s − 1, (c+1)·s − 1)
+//! ```
+//!
+//! Why that corner: it makes every coarser LOD exactly what the geomorph
+//! shader collapses a finer chunk to. The morph target of a fine lattice
+//! vertex is the vertex with each coordinate rounded down to even
+//! (`nebula_meshing`). Under that map a fine voxel at an odd index grows to
+//! fill its whole coarse cell and one at an even index collapses to nothing,
+//! so a fully morphed chunk at LOD `L` is the surface of the voxels
+//! `voxel_L((2a+1), …)` — the parent's voxels by the rule above. The one
+//! thing a collapse cannot reproduce is a one-voxel-thin sheet at an even
+//! index, which shrinks to a zero-thickness wall instead of vanishing.
+//!
+//! No coarse voxel is built from the `s³` fine voxels below it (a LOD-18
+//! chunk would need 10¹⁸ of them): each is one noise column and one
+//! comparison, at the same cost per chunk at every LOD.
 //!
 //! # Error bound δ(L)
 //!
-//! In a column at LOD `L` the top of the solid voxels is `H(c)` rounded to a
-//! multiple of `s` layers (|error| ≤ s/2), and at LOD 0 the top over fine
-//! column `c₀` is `H(c₀)` rounded to a layer (≤ 1/2). The fine columns under
-//! a coarse one are at most `s − 1` cells from its centre in |Δi| + |Δj|, so
-//! with `S` the steepest height change per lattice step (layers per cell),
+//! A LOD-0 voxel at layer `k` is solid iff its centre `k + 1/2` is below
+//! `H` at its column's centre, so the LOD-0 top over column `c₀` is within
+//! 1/2 layer of `H(c₀)`. The coarse column's top is the LOD-0 top of its
+//! sample column `c_s` rounded *down* to a multiple of `s`: between
+//! `H(c_s) + 1/2 − s` and `H(c_s) + 1/2`. The fine columns under a coarse
+//! one are at most `s − 1` cells from `c_s` along each axis, so with `S` the
+//! steepest height change per lattice step (layers per cell),
 //!
 //! ```text
-//!   |top_L − top_0| ≤ s/2 + 1/2 + S·(s − 1)      layers,  δ(L) = that × layer height
+//!   |top_L − top_0| ≤ s + 2·S·(s − 1)      layers,  δ(L) = that × layer height
 //! ```
+//!
+//! This δ is what skirts are sized from ([`VoxelSource::geometric_error`]).
+//! The LOD selection does not use it: it asks that a drawn voxel edge
+//! subtend at most τ pixels ([`ChunkLayout::voxel_edge`]).
 //!
 //! `S` is measured when the planet is built (the largest step over 4,096
 //! places, ×1.5 for the places not sampled), so the bound is empirical, not
 //! proven: a steeper spot than any sampled could exceed it. The test
 //! `geometric_error_bounds_the_voxel_tops` checks it against the voxels of
-//! places unrelated to the samples (worst error 0.52 of the bound there).
+//! places unrelated to the samples.
 
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 use noise::{Fbm, MultiFractal, NoiseFn, Perlin, RidgedMulti};
@@ -255,28 +276,33 @@ impl ProceduralPlanet {
         self.height_at(self.layout.sphere().direction(face, i, j)) / self.layer_height
     }
 
-    /// Height in layers at the centre of voxel column `(ci, cj)` at `lod`;
-    /// columns beyond a face edge are read on the neighbouring face. In the
-    /// gap beyond two edges (a cube corner) the nearest column on the face
-    /// stands in: such voxels are never face neighbours of a chunk's own.
+    /// Height in layers of voxel column `(ci, cj)` at `lod`: at the centre
+    /// of its far-corner LOD-0 column (see the module docs). Columns beyond
+    /// a face edge are read on the neighbouring face, in that face's frame.
+    /// In the gap beyond two edges (a cube corner) the nearest column on the
+    /// face stands in: such voxels are never face neighbours of a chunk's
+    /// own.
     fn column_height(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> f64 {
         let per_edge = i64::from(self.layout.voxels_per_edge(lod));
         let (face, ci, cj) =
             face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
         let span = self.layout.voxel_span(lod) as f64;
-        self.height_layers(face, (ci as f64 + 0.5) * span, (cj as f64 + 0.5) * span)
+        self.height_layers(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
     }
 
-    /// The voxel whose centre is `h + 1/2` voxels up in a column of height
-    /// `height` layers, at LOD span `span`.
-    fn classify(&self, height: f64, h: i64, span: f64) -> Voxel {
-        let depth = height - (h as f64 + 0.5) * span;
+    /// Voxel `h` (in voxels of `lod`) of a column of height `height` layers:
+    /// its far-corner LOD-0 voxel, solid iff that voxel's centre is below
+    /// the height.
+    fn classify(&self, height: f64, h: i64, lod: u8) -> Voxel {
+        let span = self.layout.voxel_span(lod);
+        let layer = (h + 1) * span - 1;
+        let depth = height - (layer as f64 + 0.5);
         if depth <= 0.0 {
             return Voxel::AIR;
         }
         let height_m = height * self.layer_height;
         let amplitude = self.settings.amplitude;
-        if depth < span {
+        if depth < 1.0 {
             if height_m > 0.55 * amplitude {
                 Voxel::SNOW
             } else if height_m < 0.03 * amplitude {
@@ -284,7 +310,7 @@ impl ProceduralPlanet {
             } else {
                 Voxel::GRASS
             }
-        } else if depth < span + 3.0 {
+        } else if depth < 4.0 {
             Voxel::DIRT
         } else {
             Voxel::STONE
@@ -328,13 +354,12 @@ impl VoxelSource for ProceduralPlanet {
     fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
         self.layout.check_voxel(at)?;
         let height = self.column_height(at.face, at.lod, at.i.into(), at.j.into());
-        Ok(self.classify(height, at.h.into(), self.layout.voxel_span(at.lod) as f64))
+        Ok(self.classify(height, at.h.into(), at.lod))
     }
 
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
         self.layout.check_key(key)?;
         out.set_key(key);
-        let span = self.layout.voxel_span(key.lod) as f64;
         let size = i64::from(CHUNK_SIZE);
         let (base_i, base_j, base_h) =
             (i64::from(key.x) * size - 1, i64::from(key.y) * size - 1, i64::from(key.layer) * size - 1);
@@ -344,7 +369,7 @@ impl VoxelSource for ProceduralPlanet {
                 let height = self.column_height(key.face, key.lod, base_i + i64::from(x), base_j + i64::from(z));
                 for y in 0..PADDED_CHUNK_SIZE {
                     voxels[PaddedChunkShape::linearize([x, y, z]) as usize] =
-                        self.classify(height, base_h + i64::from(y), span);
+                        self.classify(height, base_h + i64::from(y), key.lod);
                 }
             }
         }
@@ -371,10 +396,11 @@ impl VoxelSource for ProceduralPlanet {
         }
         let margin = self.max_slope * step;
         let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;
-        // Voxel tops are within span/2 of H; a solid voxel with air beside it
-        // lies below the top, one voxel (span layers) deep at least.
-        let min_layer = ((low - margin).max(-limit) - span / 2.0 - span).floor() as i64;
-        let max_layer = ((high + margin).min(limit) + span / 2.0).ceil() as i64;
+        // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
+        // column's height H; a solid voxel with air above or beside it lies
+        // below the top, one voxel (span layers) deep at least.
+        let min_layer = ((low - margin).max(-limit) + 0.5 - 2.0 * span).floor() as i64;
+        let max_layer = ((high + margin).min(limit) + 0.5).ceil() as i64;
         let sphere = self.layout.sphere();
         Ok(SurfaceBounds {
             min_layer,
@@ -389,6 +415,6 @@ impl VoxelSource for ProceduralPlanet {
             return 0.0;
         }
         let span = self.layout.voxel_span(lod) as f64;
-        (span / 2.0 + 0.5 + self.max_slope * (span - 1.0)) * self.layer_height
+        (span + 2.0 * self.max_slope * (span - 1.0)) * self.layer_height
     }
 }

@@ -179,7 +179,7 @@ fn lod_differences_1_to_3_on_one_edge_are_closed() {
 #[test]
 fn the_oracle_finds_cracks_when_seams_are_off() {
     let source = planet(3);
-    let off = MeshOptions { constrain_edges: false, skirts: false };
+    let off = MeshOptions::NO_SEAMS;
     let mut cracks_off = 0;
     let mut t_junctions_off = 0;
     for k in 1..=3 {

@@ -1,0 +1,216 @@
+//! The GPU form of a chunk mesh, and the vertex shader's twin on the CPU.
+//!
+//! ```text
+//!   world position p (f64, canonical)  ──►  high = f32(p), low = f32(p − high)
+//!   eye e (f64, per frame)             ──►  high = f32(e), low = f32(e − high)
+//!
+//!   on the GPU:  rel = (p.high − e.high) + (p.low − e.low)        (f32)
+//!                rel += (1 − μ(|rel|)) · morph_offset             geomorph
+//!                rel += depth[side] · normalize(centre − rel)     skirt vertices
+//! ```
+//!
+//! **Why high + low.** Design rule 6: a vertex shared by two chunks must
+//! reach the rasteriser at the bit-identical clip position in both, or the
+//! sub-pixel gap rounding leaves shows as pinholes where chunks meet. A
+//! per-chunk f32 offset (origin − eye) plus a chunk-local f32 position
+//! rounds differently in each chunk. Here every input of the vertex shader
+//! is a function of the vertex's canonical f64 world position (and the
+//! frame) alone, never of the chunk that draws it, so the same arithmetic on
+//! the same numbers gives the same clip position. `p.high − e.high` is exact
+//! when the two are within a factor of 2 (Sterbenz), so precision near the
+//! camera is that of `low`: about 10⁻⁷ m on Earth.
+//!
+//! **Why skirt depths at draw time.** A skirt vertex carries the position of
+//! the surface vertex it hangs from and its side; the renderer picks the
+//! depth per chunk side from the LODs it actually draws next to it. So a
+//! mesh does not depend on its neighbours' LODs, and a streamer can swap any
+//! chunk without re-meshing the ones around it (see `MeshOptions`).
+//!
+//! Cost: 44 bytes per vertex against the 40 of a chunk-relative f32 vertex
+//! ([`MeshVertex`](crate::MeshVertex)): the low position takes 12 bytes,
+//! an octahedral-packed normal (2 × 16 bits) gives 8 of them back.
+
+use bytemuck::{Pod, Zeroable};
+use nebula_math::{DVec3, FaceDirection, Vec3, morph_factor};
+
+use crate::ChunkMesh;
+
+/// One vertex as the GPU reads it: 44 bytes, `#[repr(C)]`, [`Pod`].
+///
+/// | bytes | field | vertex format |
+/// |---|---|---|
+/// | 0–11 | `position_high`: f32 × 3, f32 of the world position | `Float32x3` |
+/// | 12–23 | `position_low`: f32 × 3, the rest (world − high) | `Float32x3` |
+/// | 24–35 | `morph_offset`: f32 × 3, morph target − position | `Float32x3` |
+/// | 36–39 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
+/// | 40–43 | `packed`: material (low 16 bits), flags (high 16 bits) | `Uint32` |
+///
+/// A skirt vertex holds the
+/// surface vertex it hangs from; `flags` says it is a skirt and on which
+/// side ([`MeshVertex::skirt_side`](crate::MeshVertex::skirt_side)).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct RenderVertex {
+    /// f32 of the f64 world position.
+    pub position_high: [f32; 3],
+    /// f32 of (world position − `position_high`).
+    pub position_low: [f32; 3],
+    /// Morph target − position, metres (f32 of the f64 difference).
+    pub morph_offset: [f32; 3],
+    /// Unit normal, octahedral encoding, snorm16 × 2.
+    pub normal: [i16; 2],
+    /// Material id in the low 16 bits, [`MeshVertex`](crate::MeshVertex)
+    /// flags in the high 16 bits.
+    pub packed: u32,
+}
+
+/// A vector split into a high f32 part and the f32 of the rest.
+#[must_use]
+pub fn split_high_low(v: DVec3) -> ([f32; 3], [f32; 3]) {
+    let high = v.as_vec3();
+    ((high).to_array(), (v - high.as_dvec3()).as_vec3().to_array())
+}
+
+/// Octahedral encoding of a unit vector into two snorm16 values.
+#[must_use]
+pub fn encode_normal(n: Vec3) -> [i16; 2] {
+    let n = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(f32::MIN_POSITIVE);
+    let sign = |x: f32| if x >= 0.0 { 1.0 } else { -1.0 };
+    let (u, v) = if n.z >= 0.0 { (n.x, n.y) } else { ((1.0 - n.y.abs()) * sign(n.x), (1.0 - n.x.abs()) * sign(n.y)) };
+    [(u.clamp(-1.0, 1.0) * 32767.0).round() as i16, (v.clamp(-1.0, 1.0) * 32767.0).round() as i16]
+}
+
+/// Decodes [`encode_normal`] (the shader's `decode_normal`).
+#[must_use]
+pub fn decode_normal(e: [i16; 2]) -> Vec3 {
+    let (x, y) = (f32::from(e[0]) / 32767.0, f32::from(e[1]) / 32767.0);
+    let mut n = Vec3::new(x, y, 1.0 - x.abs() - y.abs());
+    let t = (-n.z).max(0.0);
+    n.x += if n.x >= 0.0 { -t } else { t };
+    n.y += if n.y >= 0.0 { -t } else { t };
+    n.normalize_or_zero()
+}
+
+/// What the vertex shader reads per frame, in the form the GPU gets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameDraw {
+    /// The eye, high part.
+    pub eye_high: [f32; 3],
+    /// The eye, low part.
+    pub eye_low: [f32; 3],
+    /// K, pixels per radian.
+    pub k: f64,
+    /// τ, pixels.
+    pub threshold_px: f64,
+    /// Geomorphing on.
+    pub morph: bool,
+}
+
+impl FrameDraw {
+    /// The constants for an eye at `eye`.
+    #[must_use]
+    pub fn new(eye: DVec3, k: f64, threshold_px: f64, morph: bool) -> Self {
+        let (eye_high, eye_low) = split_high_low(eye);
+        Self { eye_high, eye_low, k, threshold_px, morph }
+    }
+
+    /// The eye the GPU sees (high + low), f64.
+    #[must_use]
+    pub fn eye(&self) -> DVec3 {
+        Vec3::from_array(self.eye_high).as_dvec3() + Vec3::from_array(self.eye_low).as_dvec3()
+    }
+}
+
+/// What the vertex shader reads per chunk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChunkDraw {
+    /// The error of the LOD the chunk merges into (its parent's voxel
+    /// edge), metres; +∞ for the coarsest LOD, which never morphs.
+    pub parent_error: f64,
+    /// Skirt depth per horizontal side (index as in
+    /// [`FaceDirection::HORIZONTAL`]), metres.
+    pub skirt_depths: [f32; 4],
+}
+
+impl RenderVertex {
+    /// The camera-relative position the vertex shader computes (before the
+    /// projection), in f64 from the same f32 inputs: the CPU twin used by
+    /// the crack oracle and the pop measurement. The relative position
+    /// itself is formed in f32 exactly as on the GPU.
+    #[must_use]
+    pub fn drawn_relative(&self, frame: &FrameDraw, chunk: &ChunkDraw) -> DVec3 {
+        let rel = |k: usize| (self.position_high[k] - frame.eye_high[k]) + (self.position_low[k] - frame.eye_low[k]);
+        let mut rel = DVec3::new(f64::from(rel(0)), f64::from(rel(1)), f64::from(rel(2)));
+        if frame.morph {
+            let mu = vertex_morph_factor(frame, chunk, rel.length());
+            rel += Vec3::from_array(self.morph_offset).as_dvec3() * (1.0 - mu);
+        }
+        let flags = (self.packed >> 16) as u16;
+        if flags & crate::MeshVertex::SKIRT != 0 {
+            let side = usize::from((flags >> crate::MeshVertex::SIDE_SHIFT) & 3);
+            let centre = -frame.eye();
+            rel += (centre - rel).normalize_or_zero() * f64::from(chunk.skirt_depths[side]);
+        }
+        rel
+    }
+
+    /// The material id.
+    #[must_use]
+    pub fn material(&self) -> u16 {
+        (self.packed & 0xffff) as u16
+    }
+
+    /// The flags ([`MeshVertex`](crate::MeshVertex) constants).
+    #[must_use]
+    pub fn flags(&self) -> u16 {
+        (self.packed >> 16) as u16
+    }
+}
+
+/// μ of a vertex at `distance` metres from the eye in a chunk drawn with
+/// `chunk`'s parent error: [`nebula_math::morph_factor`] of ρ_parent/τ, as
+/// the shader computes it.
+#[must_use]
+pub fn vertex_morph_factor(frame: &FrameDraw, chunk: &ChunkDraw, distance: f64) -> f64 {
+    let rho = chunk.parent_error * frame.k / distance.max(1e-3);
+    morph_factor(rho / frame.threshold_px)
+}
+
+impl ChunkMesh {
+    /// The vertices in GPU form (see [`RenderVertex`]), in the order of
+    /// [`ChunkMesh::vertices`], so [`ChunkMesh::indices`] index them.
+    #[must_use]
+    pub fn render_vertices(&self) -> Vec<RenderVertex> {
+        (0..self.vertices.len())
+            .map(|i| {
+                let v = self.vertices[i];
+                // A skirt vertex carries the vertex it hangs from; the
+                // renderer lowers it by the side's depth.
+                let from = self.skirt_top(i).map_or(i, |top| top as usize);
+                let (world, morph) = (self.world[from], self.morph_world[from]);
+                let (position_high, position_low) = split_high_low(world);
+                RenderVertex {
+                    position_high,
+                    position_low,
+                    morph_offset: (morph - world).as_vec3().to_array(),
+                    normal: encode_normal(v.normal),
+                    packed: u32::from(v.material) | (u32::from(v.flags) << 16),
+                }
+            })
+            .collect()
+    }
+
+    /// The skirt depths this mesh was generated with, as a [`ChunkDraw`]
+    /// with `parent_error`.
+    #[must_use]
+    pub fn chunk_draw(&self, parent_error: f64) -> ChunkDraw {
+        ChunkDraw { parent_error, skirt_depths: self.skirt_depths }
+    }
+}
+
+/// The index of `side` in [`FaceDirection::HORIZONTAL`] (0 for ±Y, which
+/// have no skirts).
+#[must_use]
+pub fn side_index(side: FaceDirection) -> usize {
+    FaceDirection::HORIZONTAL.iter().position(|&s| s == side).unwrap_or(0)
+}
