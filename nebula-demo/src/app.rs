@@ -1,17 +1,45 @@
-//! The planet as a bevy_ecs world: chunks are entities, and systems update
-//! the LOD selection, hand meshing jobs to rayon, collect finished meshes and
-//! upload them. Rendering reads the world; windowing lives in `main.rs`.
+//! The planet as a bevy_ecs world: resources for the LOD tree, the mesh
+//! cache and the job queue, and systems that update the LOD selection,
+//! collect finished meshes, choose what to draw and hand out meshing jobs.
+//! Rendering reads the world; windowing lives in `main.rs`.
+//!
+//! # What is drawn: every frame complete, never waiting for meshing
+//!
+//! Meshes are made with [`MeshOptions::STREAMING`]: they do not depend on
+//! their neighbours' LODs (skirts hang on every side, and their depth is
+//! chosen per side at draw time from the LODs actually drawn next to the
+//! chunk). So any chunk may be shown the moment its column is meshed, and a
+//! LOD change never waits for neighbours to be re-meshed. Each frame:
+//!
+//! ```text
+//!   for each visible leaf L of the LOD tree:
+//!     L's column meshed            → draw L
+//!     else its 4 children meshed   → draw them (a merge not ready yet)
+//!     else nearest meshed ancestor → draw it instead (a split not ready yet);
+//!                                    leaves under a drawn ancestor are not drawn
+//!   skirt depth per side = skirt_depth(L, LOD drawn across that side)
+//! ```
+//!
+//! The six face roots are meshed before the first frame, so an ancestor
+//! always exists and no frame has a hole. Jobs go to a priority queue
+//! (largest projected voxel first, which is coarse-first and nearest-first),
+//! rebuilt every frame from what is wanted, so a chunk that left the view is
+//! never meshed (cancellation); workers on meshing's own thread pool take
+//! the top job.
 
-use std::collections::HashMap;
-use std::sync::Arc;
+use std::collections::{BinaryHeap, HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use nebula_lod::{Camera, ChunkLodContext, LodSettings, LodTree};
-use nebula_math::DVec3;
-use nebula_meshing::{ChunkMesh, ChunkMeshBuffer, MeshError, MeshOptions, mesh_chunk};
-use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
+use nebula_lod::{Camera, LodSettings, LodTree, children, parent};
+use nebula_math::{DVec3, FaceDirection};
+use nebula_meshing::{
+    ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshOptions, RenderVertex, mesh_chunk, skirt_depth,
+};
+use nebula_voxel::{ChunkColumn, ChunkKey, ProceduralPlanet, VoxelSource};
 
 use crate::gpu::{DebugView, FrameParams, Gpu, GpuMesh};
 
@@ -39,21 +67,192 @@ pub struct View {
 #[derive(Resource)]
 pub struct GpuRes(pub Gpu);
 
-/// Meshing jobs in flight on rayon and the channel their results come back
-/// on.
+/// A chunk mesh in GPU form, kept on the CPU for the crack oracle.
+pub struct CpuMesh {
+    /// Vertices as uploaded.
+    pub vertices: Vec<RenderVertex>,
+    /// Triangle list: the surface, then each side's skirt.
+    pub indices: Vec<u32>,
+    /// `indices[..surface_indices]` is the surface.
+    pub surface_indices: usize,
+    /// Index range of each side's skirt (as in `FaceDirection::HORIZONTAL`).
+    pub skirt_ranges: [std::ops::Range<usize>; 4],
+}
+
+impl CpuMesh {
+    /// The index ranges drawn with `draw`: the surface and the skirts of
+    /// the sides lowered.
+    #[must_use]
+    pub fn drawn_ranges(&self, draw: &ChunkDraw) -> Vec<std::ops::Range<usize>> {
+        drawn_ranges(self.surface_indices, &self.skirt_ranges, draw)
+    }
+}
+
+/// The surface range and the skirt ranges of the sides `draw` lowers,
+/// adjacent ranges merged.
+#[must_use]
+pub fn drawn_ranges(
+    surface: usize,
+    skirts: &[std::ops::Range<usize>; 4],
+    draw: &ChunkDraw,
+) -> Vec<std::ops::Range<usize>> {
+    let mut ranges = Vec::with_capacity(5);
+    ranges.push(0..surface);
+    for (range, depth) in skirts.iter().zip(draw.skirt_depths) {
+        if depth <= 0.0 || range.is_empty() {
+            continue;
+        }
+        match ranges.last_mut() {
+            Some(last) if last.end == range.start => last.end = range.end,
+            _ => ranges.push(range.clone()),
+        }
+    }
+    ranges
+}
+
+/// One chunk's mesh on the GPU.
+pub struct LoadedChunk {
+    /// GPU buffers.
+    pub gpu: GpuMesh,
+    /// Surface triangles.
+    pub surface_triangles: usize,
+    /// Skirt triangles per side (as in `FaceDirection::HORIZONTAL`).
+    pub skirt_triangles: [usize; 4],
+    /// The mesh on the CPU, when the app keeps them (crack checks).
+    pub cpu: Option<CpuMesh>,
+}
+
+/// The meshes of one chunk column (all its radial layers).
+struct CachedColumn {
+    /// The radial layers that hold surface (a failed bounds query: none).
+    layers: Vec<i32>,
+    chunks: HashMap<i32, LoadedChunk>,
+    /// Frame it was last drawn or wanted in.
+    last_used: u64,
+}
+
+impl CachedColumn {
+    fn new(planet: &ProceduralPlanet, column: ChunkColumn, frame: u64) -> Self {
+        let layers = planet.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
+        Self { layers, chunks: HashMap::new(), last_used: frame }
+    }
+
+    fn ready(&self) -> bool {
+        self.chunks.len() == self.layers.len()
+    }
+}
+
+/// Every chunk mesh on the GPU, by column.
+#[derive(Resource, Default)]
+pub struct MeshCache {
+    columns: HashMap<ChunkColumn, CachedColumn>,
+    /// Keep a CPU copy of each mesh (for the crack oracle).
+    pub keep_cpu: bool,
+    /// Columns out of use this many frames are freed (face roots never).
+    pub free_after_frames: u64,
+    /// At most this many chunk meshes are kept: past it, the columns used
+    /// longest ago (not drawn or wanted this frame) are freed first. What
+    /// the frame draws is always kept.
+    pub max_chunks: usize,
+}
+
+impl MeshCache {
+    fn ready(&self, column: ChunkColumn) -> bool {
+        self.columns.get(&column).is_some_and(CachedColumn::ready)
+    }
+
+    /// Bytes of GPU buffers held.
+    #[must_use]
+    pub fn gpu_bytes(&self) -> u64 {
+        self.columns.values().flat_map(|c| c.chunks.values()).map(|c| c.gpu.bytes).sum()
+    }
+
+    /// Chunk meshes held.
+    #[must_use]
+    pub fn chunks(&self) -> usize {
+        self.columns.values().map(|c| c.chunks.len()).sum()
+    }
+}
+
+/// A meshing job: one chunk, with the priority of its column.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Job {
+    priority: f64,
+    key: ChunkKey,
+}
+
+impl Eq for Job {}
+
+impl Ord for Job {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.priority.total_cmp(&other.priority).then_with(|| other.key.cmp(&self.key))
+    }
+}
+
+impl PartialOrd for Job {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// The queue workers take jobs from, and the chunks they hold.
+#[derive(Default)]
+struct JobState {
+    queue: BinaryHeap<Job>,
+    running: HashSet<ChunkKey>,
+}
+
+struct MeshResult {
+    key: ChunkKey,
+    result: Result<CpuMesh, nebula_meshing::MeshError>,
+    millis: f64,
+}
+
+/// Meshing jobs: the shared priority queue, the workers on a thread pool of
+/// their own and the channel finished meshes come back on.
 #[derive(Resource)]
 pub struct Meshing {
+    /// Meshing's own threads: work the frame thread hands to rayon's global
+    /// pool (the crack oracle) must never queue behind a worker that runs
+    /// until the job queue is empty.
+    pool: Arc<rayon::ThreadPool>,
+    state: Arc<Mutex<JobState>>,
+    workers: Arc<AtomicUsize>,
+    max_workers: usize,
     sender: Sender<MeshResult>,
-    receiver: std::sync::Mutex<Receiver<MeshResult>>,
-    /// Jobs handed out and not yet collected.
-    pub in_flight: usize,
-    /// Which seam passes run.
+    receiver: Mutex<Receiver<MeshResult>>,
+    /// Which seam passes run (the draw-time skirts must stay on).
     pub options: MeshOptions,
 }
 
-/// Entities by chunk key.
-#[derive(Resource, Default)]
-pub struct ChunkIndex(pub HashMap<ChunkKey, Entity>);
+impl Meshing {
+    /// Jobs queued or running.
+    #[must_use]
+    pub fn pending(&self) -> usize {
+        self.state.lock().map_or(0, |s| s.queue.len() + s.running.len())
+    }
+
+    /// Jobs running now.
+    #[must_use]
+    pub fn running(&self) -> usize {
+        self.state.lock().map_or(0, |s| s.running.len())
+    }
+}
+
+/// What the next frame draws.
+#[derive(Resource, Default, Clone)]
+pub struct DrawList {
+    /// Columns drawn, with their per-chunk draw constants.
+    pub columns: Vec<(ChunkColumn, ChunkDraw)>,
+    /// Visible leaves with nothing to draw for them (no meshed ancestor).
+    pub holes: usize,
+    /// Visible leaves drawn through a coarser ancestor or finer children.
+    pub stand_ins: usize,
+    /// Largest LOD gap between a visible leaf and the ancestor drawn for it.
+    pub max_stand_in_levels: u8,
+    /// Lowest surface radius under the drawn columns.
+    pub min_surface_radius: f64,
+}
 
 /// CPU time per stage, milliseconds, for the last frame (meshing: summed
 /// over the jobs collected this frame).
@@ -61,6 +260,8 @@ pub struct ChunkIndex(pub HashMap<ChunkKey, Entity>);
 pub struct StageTimes {
     /// LOD update and culling.
     pub lod_ms: f64,
+    /// Choosing what to draw and what to mesh.
+    pub select_ms: f64,
     /// Meshing jobs collected this frame (CPU time of the jobs, on worker
     /// threads).
     pub meshing_ms: f64,
@@ -68,58 +269,49 @@ pub struct StageTimes {
     pub meshing_total_ms: f64,
     /// Chunks meshed since the start.
     pub chunks_meshed: usize,
+    /// Meshing errors since the start (each logged).
+    pub mesh_errors: usize,
     /// Buffer uploads.
     pub upload_ms: f64,
     /// Recording and submitting the draw.
     pub render_ms: f64,
 }
 
-struct MeshResult {
-    entity: Entity,
-    version: u32,
-    result: Result<ChunkMesh, MeshError>,
-    millis: f64,
-}
-
-/// A chunk the LOD selection wants.
-#[derive(Component)]
-pub struct Chunk {
-    /// Which chunk.
-    pub key: ChunkKey,
-    /// Its neighbours' LODs.
-    pub context: ChunkLodContext,
-    /// Bumped when the chunk must be meshed again.
-    pub version: u32,
-    /// Whether a job for `version` is out.
-    pub queued: bool,
-    /// Frame it was last seen in view.
-    pub last_seen: u64,
-}
-
-/// A chunk's mesh on the GPU, with its figures.
-#[derive(Component)]
-pub struct Uploaded {
-    /// GPU buffers.
-    pub mesh: GpuMesh,
-    /// Triangles, all.
-    pub triangles: usize,
-    /// Of which skirts.
-    pub skirt_triangles: usize,
-}
-
-/// Marks chunks whose leaf left the tree: drawn until their successors are
-/// ready, then freed.
-#[derive(Component)]
-pub struct Retiring;
-
-/// Marks chunks shown on screen (new chunks wait until the batch that
-/// replaces old ones is complete, so the surface never has holes).
-#[derive(Component)]
-pub struct Shown;
-
 /// Frame counter.
 #[derive(Resource, Default)]
 pub struct FrameCount(pub u64);
+
+/// What drives the geomorph factor μ of a chunk.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum MorphRule {
+    /// The projected error of the LOD the chunk merges into (its parent's
+    /// voxel edge): LOD 0 near the camera is drawn exactly.
+    #[default]
+    Parent,
+    /// The chunk's own error bound, as the first version did (0 at LOD 0,
+    /// so LOD 0 is always drawn fully morphed): kept to show what the
+    /// morph checks catch.
+    Own,
+    /// No geomorphing: every chunk drawn as meshed.
+    Off,
+}
+
+/// Switches for what is drawn: for debugging and for showing that the
+/// crack and morph checks catch real defects.
+#[derive(Resource, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawOptions {
+    /// Lower skirts where a chunk meets another LOD (off: every skirt has
+    /// depth 0, seams between LODs open).
+    pub skirts: bool,
+    /// What drives μ.
+    pub morph: MorphRule,
+}
+
+impl Default for DrawOptions {
+    fn default() -> Self {
+        Self { skirts: true, morph: MorphRule::Parent }
+    }
+}
 
 /// The demo's world and schedule.
 pub struct PlanetApp {
@@ -129,10 +321,12 @@ pub struct PlanetApp {
 }
 
 impl PlanetApp {
-    /// A world for `planet` with LOD `settings`, drawing through `gpu`.
+    /// A world for `planet` with LOD `settings`, drawing through `gpu`. The
+    /// six face roots are meshed before it returns, so every frame has
+    /// something to draw everywhere.
     ///
     /// # Errors
-    /// If the LOD settings are bad.
+    /// If the LOD settings are bad or a root cannot be meshed.
     pub fn new(planet: ProceduralPlanet, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
         let tree = LodTree::new(&planet, settings)?;
         let mut world = World::new();
@@ -141,18 +335,69 @@ impl PlanetApp {
         world.insert_resource(Lod { tree });
         world.insert_resource(view);
         world.insert_resource(GpuRes(gpu));
+        let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        let pool =
+            rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|n| format!("nebula-mesh-{n}")).build()?;
         world.insert_resource(Meshing {
+            pool: Arc::new(pool),
+            state: Arc::default(),
+            workers: Arc::default(),
+            max_workers: threads,
             sender,
-            receiver: std::sync::Mutex::new(receiver),
-            in_flight: 0,
-            options: MeshOptions::default(),
+            receiver: Mutex::new(receiver),
+            options: MeshOptions::STREAMING,
         });
-        world.insert_resource(ChunkIndex::default());
+        world.insert_resource(MeshCache {
+            keep_cpu: false,
+            free_after_frames: 300,
+            max_chunks: 12_000,
+            ..MeshCache::default()
+        });
+        world.insert_resource(DrawList::default());
+        world.insert_resource(DrawOptions::default());
         world.insert_resource(StageTimes::default());
         world.insert_resource(FrameCount::default());
         let mut schedule = Schedule::default();
-        schedule.add_systems((lod_system, dispatch_meshing_system, collect_meshes_system, swap_system).chain());
-        Ok(Self { world, schedule })
+        schedule.add_systems((lod_system, collect_meshes_system, select_system, free_system).chain());
+        let mut app = Self { world, schedule };
+        app.mesh_roots()?;
+        Ok(app)
+    }
+
+    /// Meshes the face roots on the calling thread (all of the planet, at
+    /// its coarsest LOD: the stand-in of last resort).
+    fn mesh_roots(&mut self) -> anyhow::Result<()> {
+        let planet = self.world.resource::<Planet>().0.clone();
+        let max_lod = planet.layout().max_lod();
+        let mut buffer = ChunkMeshBuffer::new();
+        let mut results = Vec::new();
+        for face in nebula_voxel::CubeFace::ALL {
+            let column = ChunkColumn { face, lod: max_lod, x: 0, y: 0 };
+            for layer in planet.surface_chunk_layers(column)? {
+                let key = column.chunk(layer);
+                let mesh =
+                    mesh_chunk(&*planet, key, &ChunkLodContext::uniform(max_lod), MeshOptions::STREAMING, &mut buffer)?;
+                results.push(MeshResult { key, result: Ok(cpu_mesh(&mesh)), millis: 0.0 });
+            }
+        }
+        self.world.resource_scope(|world, mut cache: Mut<MeshCache>| {
+            let gpu = &world.resource::<GpuRes>().0;
+            for done in results {
+                store(&mut cache, &planet, gpu, done, 0);
+            }
+        });
+        Ok(())
+    }
+
+    /// Keep CPU copies of meshes (needed by the crack oracle).
+    pub fn keep_cpu_meshes(&mut self, keep: bool) {
+        self.world.resource_mut::<MeshCache>().keep_cpu = keep;
+    }
+
+    /// Changes what is drawn (see [`DrawOptions`]); applies from the next
+    /// [`PlanetApp::step`].
+    pub fn set_draw_options(&mut self, options: DrawOptions) {
+        self.world.insert_resource(options);
     }
 
     /// Moves the camera.
@@ -160,85 +405,119 @@ impl PlanetApp {
         self.world.insert_resource(view);
     }
 
-    /// Runs one frame of the systems (no drawing).
+    /// Runs one frame of the systems (no drawing): LOD update, collecting
+    /// finished meshes, choosing what to draw and what to mesh.
     pub fn step(&mut self) {
         self.world.resource_mut::<FrameCount>().0 += 1;
         self.schedule.run(&mut self.world);
     }
 
-    /// Chunk entities alive (drawn, waiting, or kept a while out of view):
+    /// Whether the view is final: nothing drawn in place of a visible leaf
+    /// and no job queued or running.
+    #[must_use]
+    pub fn settled(&self) -> bool {
+        let draw = self.world.resource::<DrawList>();
+        draw.stand_ins == 0 && draw.holes == 0 && self.world.resource::<Meshing>().pending() == 0
+    }
+
+    /// Chunk meshes held (drawn, stand-ins, or kept a while out of view):
     /// what stays flat on a long flight.
     #[must_use]
     pub fn chunk_entities(&self) -> usize {
-        self.world.resource::<ChunkIndex>().0.len()
+        self.world.resource::<MeshCache>().chunks()
     }
 
-    /// Meshing jobs still out.
+    /// Meshing jobs queued or running.
     #[must_use]
     pub fn jobs_in_flight(&self) -> usize {
-        self.world.resource::<Meshing>().in_flight
+        self.world.resource::<Meshing>().pending()
     }
 
-    /// Draws the shown chunks in view into `target`.
+    /// The per-frame constants of the shader for the current view.
+    #[must_use]
+    pub fn frame_draw(&self) -> FrameDraw {
+        let view = self.world.resource::<View>();
+        let settings = self.world.resource::<Lod>().tree.settings();
+        let k = settings.screen_space().map_or(1.0, |s| s.k());
+        let morph = self.world.resource::<DrawOptions>().morph != MorphRule::Off;
+        FrameDraw::new(view.camera.position, k, settings.threshold_px, morph)
+    }
+
+    /// Draws this frame's [`DrawList`] into `target`.
     pub fn draw(&mut self, target: &wgpu::TextureView, size: (u32, u32), background: [u8; 3], debug: DebugView) {
         let start = Instant::now();
         let view = *self.world.resource::<View>();
-        let (k, threshold, max_lod) = {
-            let lod = self.world.resource::<Lod>();
-            let settings = lod.tree.settings();
-            let k = settings.screen_space().map_or(1.0, |s| s.k());
-            (k, settings.threshold_px, lod.tree.max_lod())
-        };
-        let visible: std::collections::HashSet<_> =
-            self.world.resource::<Lod>().tree.visible_leaves().iter().copied().collect();
+        let frame_draw = self.frame_draw();
+        let max_lod = self.world.resource::<Lod>().tree.max_lod();
         let frame = FrameParams {
             eye: view.camera.position,
             forward: view.camera.forward,
             up: view.camera.up,
             fov_y_degrees: view.fov_y_degrees as f32,
-            k: k as f32,
-            threshold_px: threshold as f32,
+            k: frame_draw.k as f32,
+            threshold_px: frame_draw.threshold_px as f32,
             background,
             view: debug,
-            morph: true,
+            morph: frame_draw.morph,
             max_lod,
         };
-        // Retiring chunks stay on screen until their successors are all
-        // ready (their columns are no longer leaves, so no cull test).
-        let mut query = self.world.query_filtered::<(Entity, &Chunk, Has<Retiring>), (With<Shown>, With<Uploaded>)>();
-        let chosen: Vec<Entity> = query
-            .iter(&self.world)
-            .filter(|(_, chunk, retiring)| *retiring || visible.contains(&chunk.key.column()))
-            .map(|(entity, _, _)| entity)
-            .collect();
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
-            let meshes: Vec<&GpuMesh> =
-                chosen.iter().filter_map(|&e| world.get::<Uploaded>(e)).map(|u| &u.mesh).collect();
+            let cache = world.resource::<MeshCache>();
+            let list = world.resource::<DrawList>();
+            let meshes: Vec<(&GpuMesh, ChunkDraw)> = list
+                .columns
+                .iter()
+                .filter_map(|(column, draw)| cache.columns.get(column).map(|c| (c, *draw)))
+                .flat_map(|(c, draw)| c.chunks.values().map(move |chunk| (&chunk.gpu, draw)))
+                .collect();
             gpu.0.draw(target, size, &frame, &meshes);
         });
         self.world.resource_mut::<StageTimes>().render_ms = start.elapsed().as_secs_f64() * 1e3;
     }
 
-    /// Figures of what the last draw showed.
+    /// What the draw list draws, for the crack oracle: the meshes on the
+    /// CPU with their draw constants (none unless
+    /// [`PlanetApp::keep_cpu_meshes`]), the frame constants and the lowest
+    /// ground under them.
     #[must_use]
-    pub fn frame_figures(&mut self) -> FrameFigures {
-        let visible: std::collections::HashSet<_> =
-            self.world.resource::<Lod>().tree.visible_leaves().iter().copied().collect();
+    pub fn drawn_geometry(&self) -> crate::crack::DrawnGeometry<'_> {
+        let cache = self.world.resource::<MeshCache>();
+        let list = self.world.resource::<DrawList>();
+        let drawn = list
+            .columns
+            .iter()
+            .filter_map(|(column, draw)| cache.columns.get(column).map(|c| (c, *draw)))
+            .flat_map(|(c, draw)| c.chunks.values().filter_map(move |chunk| chunk.cpu.as_ref().map(|m| (m, draw))))
+            .collect();
+        crate::crack::DrawnGeometry { drawn, frame: self.frame_draw(), sentinel_radius: self.view_min_surface_radius() }
+    }
+
+    /// Figures of what the draw list shows.
+    #[must_use]
+    pub fn frame_figures(&self) -> FrameFigures {
         let max_lod = self.world.resource::<Lod>().tree.max_lod();
         let mut figures = FrameFigures { lod_histogram: vec![0; usize::from(max_lod) + 1], ..FrameFigures::default() };
-        let mut query = self.world.query_filtered::<(&Chunk, &Uploaded), With<Shown>>();
-        for (chunk, uploaded) in query.iter(&self.world) {
-            if visible.contains(&chunk.key.column()) {
+        let cache = self.world.resource::<MeshCache>();
+        let list = self.world.resource::<DrawList>();
+        for (column, draw) in &list.columns {
+            let Some(cached) = cache.columns.get(column) else { continue };
+            for chunk in cached.chunks.values() {
                 figures.chunks += 1;
-                figures.triangles += uploaded.triangles;
-                figures.skirt_triangles += uploaded.skirt_triangles;
-                figures.lod_histogram[usize::from(chunk.key.lod)] += 1;
+                let skirts: usize =
+                    chunk.skirt_triangles.iter().zip(draw.skirt_depths).filter(|(_, d)| *d > 0.0).map(|(n, _)| n).sum();
+                figures.triangles += chunk.surface_triangles + skirts;
+                figures.skirt_triangles += skirts;
+                figures.skirt_triangles_held += chunk.skirt_triangles.iter().sum::<usize>();
+                figures.lod_histogram[usize::from(column.lod)] += 1;
             }
         }
-        let stats = self.world.resource::<Lod>().tree.stats();
-        figures.max_neighbor_lod_diff = stats.max_neighbor_lod_diff;
+        figures.stand_ins = list.stand_ins;
+        figures.holes = list.holes;
+        figures.max_neighbor_lod_diff = self.world.resource::<Lod>().tree.stats().max_neighbor_lod_diff;
         figures.times = *self.world.resource::<StageTimes>();
         figures.jobs_in_flight = self.jobs_in_flight();
+        figures.gpu_bytes = cache.gpu_bytes();
+        figures.chunks_held = cache.chunks();
         figures
     }
 
@@ -248,19 +527,12 @@ impl PlanetApp {
         self.world.resource::<Lod>().tree.min_surface_radius()
     }
 
-    /// The lowest surface radius under the leaves in view: the crack
-    /// sentinel sphere. Everything on screen lies above it, and unlike the
-    /// planet-wide minimum it is close enough under the ground that grazing
-    /// views still see it.
+    /// The lowest surface radius under the columns drawn: the crack
+    /// sentinel sphere. Everything on screen lies above it.
     #[must_use]
     pub fn view_min_surface_radius(&self) -> f64 {
-        let tree = &self.world.resource::<Lod>().tree;
-        tree.visible_leaves()
-            .iter()
-            .filter_map(|&c| tree.node_bounds(c))
-            .map(|b| b.min_radius)
-            .reduce(f64::min)
-            .unwrap_or_else(|| tree.min_surface_radius())
+        let list = self.world.resource::<DrawList>();
+        if list.min_surface_radius.is_finite() { list.min_surface_radius } else { self.min_surface_radius() }
     }
 
     /// The GPU.
@@ -277,172 +549,350 @@ pub struct FrameFigures {
     pub chunks: usize,
     /// Triangles drawn.
     pub triangles: usize,
-    /// Of which skirts.
+    /// Of which skirts (the sides drawn lowered).
     pub skirt_triangles: usize,
+    /// Skirt triangles of all sides in the drawn meshes (drawn or not).
+    pub skirt_triangles_held: usize,
     /// Chunks drawn per LOD.
     pub lod_histogram: Vec<usize>,
+    /// Visible leaves drawn through an ancestor or their children.
+    pub stand_ins: usize,
+    /// Visible leaves with nothing drawn for them.
+    pub holes: usize,
     /// Largest LOD difference between neighbouring leaves.
     pub max_neighbor_lod_diff: u8,
     /// CPU time per stage.
     pub times: StageTimes,
-    /// Meshing jobs still out.
+    /// Meshing jobs queued or running.
     pub jobs_in_flight: usize,
+    /// GPU buffer bytes held by chunk meshes.
+    pub gpu_bytes: u64,
+    /// Chunk meshes held.
+    pub chunks_held: usize,
 }
 
-/// Updates the LOD selection and the set of chunk entities it wants.
-#[expect(clippy::too_many_arguments, reason = "a bevy system names each resource it touches")]
-fn lod_system(
-    mut commands: Commands,
-    planet: Res<Planet>,
-    view: Res<View>,
-    frame: Res<FrameCount>,
-    mut lod: ResMut<Lod>,
-    mut index: ResMut<ChunkIndex>,
-    mut times: ResMut<StageTimes>,
-    mut chunks: Query<(&mut Chunk, Has<Retiring>)>,
-) {
+/// Updates the LOD selection and culls it to the view.
+fn lod_system(planet: Res<Planet>, view: Res<View>, mut lod: ResMut<Lod>, mut times: ResMut<StageTimes>) {
     let start = Instant::now();
     let planet = &*planet.0;
-    let Ok(changes) = lod.tree.update(planet, &view.camera) else { return };
-    if lod.tree.cull(&view.camera).is_err() {
-        return;
-    }
-    // Chunks whose leaf is gone retire (drawn until their successors are
-    // ready); the tree says which, so nothing is scanned.
-    for key in &changes.removed {
-        if let Some(&entity) = index.0.get(key) {
-            commands.entity(entity).insert(Retiring);
-        }
-    }
-    for key in lod.tree.visible_chunks() {
-        let Some(context) = lod.tree.context(key.column()) else { continue };
-        match index.0.get(&key) {
-            Some(&entity) => {
-                if let Ok((mut chunk, retiring)) = chunks.get_mut(entity) {
-                    if retiring {
-                        // Its leaf came back before the swap: keep it.
-                        commands.entity(entity).remove::<Retiring>();
-                        chunk.queued = chunk.queued && chunk.context == context;
-                    }
-                    chunk.last_seen = frame.0;
-                    if chunk.context != context {
-                        chunk.context = context;
-                        chunk.version += 1;
-                        chunk.queued = false;
-                    }
-                }
-            }
-            None => {
-                let entity = commands.spawn(Chunk { key, context, version: 1, queued: false, last_seen: frame.0 }).id();
-                index.0.insert(key, entity);
-            }
-        }
-    }
-    // Chunks out of view for 300 frames are freed, so memory stays flat on
-    // a long flight (checked once a second at 60 fps, not every frame).
-    if frame.0.is_multiple_of(60) {
-        let mut freed = Vec::new();
-        for (&key, &entity) in &index.0 {
-            let Ok((chunk, retiring)) = chunks.get(entity) else { continue };
-            if !retiring && frame.0.saturating_sub(chunk.last_seen) > 300 {
-                freed.push(key);
-                commands.entity(entity).despawn();
-            }
-        }
-        for key in freed {
-            index.0.remove(&key);
-        }
+    if let Err(error) = lod.tree.update(planet, &view.camera).and_then(|_| lod.tree.cull(&view.camera)) {
+        eprintln!("nebula-demo: LOD update failed, keeping the last selection: {error}");
     }
     times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
-thread_local! {
-    static BUFFER: std::cell::RefCell<ChunkMeshBuffer> = std::cell::RefCell::new(ChunkMeshBuffer::new());
+/// The GPU form of a finished mesh and its skirt triangle count.
+fn cpu_mesh(mesh: &nebula_meshing::ChunkMesh) -> CpuMesh {
+    CpuMesh {
+        vertices: mesh.render_vertices(),
+        indices: mesh.indices().to_vec(),
+        surface_indices: mesh.surface_triangle_count() * 3,
+        skirt_ranges: mesh.skirt_index_ranges(),
+    }
 }
 
-/// Hands chunks that need a mesh to rayon; never waits for one.
-fn dispatch_meshing_system(
-    planet: Res<Planet>,
-    mut meshing: ResMut<Meshing>,
-    mut chunks: Query<(Entity, &mut Chunk), Without<Retiring>>,
-) {
-    for (entity, mut chunk) in &mut chunks {
-        if chunk.queued {
-            continue;
+/// Uploads a finished job into the cache (a failed one is logged and
+/// stored empty, so its column is not blocked for ever).
+fn store(cache: &mut MeshCache, planet: &ProceduralPlanet, gpu: &Gpu, done: MeshResult, frame: u64) -> bool {
+    let column = done.key.column();
+    let (mesh, failed) = match done.result {
+        Ok(mesh) => (mesh, false),
+        Err(error) => {
+            eprintln!("nebula-demo: meshing {:?} failed, drawing it empty: {error}", done.key);
+            let empty = [0..0, 0..0, 0..0, 0..0];
+            (CpuMesh { vertices: Vec::new(), indices: Vec::new(), surface_indices: 0, skirt_ranges: empty }, true)
         }
-        chunk.queued = true;
-        meshing.in_flight += 1;
-        let (planet, sender, options) = (planet.0.clone(), meshing.sender.clone(), meshing.options);
-        let (key, context, version) = (chunk.key, chunk.context, chunk.version);
-        rayon::spawn(move || {
-            let start = Instant::now();
-            let result = BUFFER.with(|buffer| mesh_chunk(&*planet, key, &context, options, &mut buffer.borrow_mut()));
-            let _ = sender.send(MeshResult { entity, version, result, millis: start.elapsed().as_secs_f64() * 1e3 });
-        });
+    };
+    let key = done.key;
+    let id = key.x.wrapping_mul(73_856_093)
+        ^ key.y.wrapping_mul(19_349_663)
+        ^ (key.layer as u32).wrapping_mul(83_492_791)
+        ^ ((key.face as u32) << 3);
+    let gpu_mesh = gpu.upload(&mesh, key.lod, id, "chunk");
+    let loaded = LoadedChunk {
+        gpu: gpu_mesh,
+        surface_triangles: mesh.surface_indices / 3,
+        skirt_triangles: mesh.skirt_ranges.clone().map(|r| r.len() / 3),
+        cpu: cache.keep_cpu.then_some(mesh),
+    };
+    let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(planet, column, frame));
+    if entry.layers.contains(&key.layer) {
+        entry.chunks.insert(key.layer, loaded);
     }
+    failed
 }
 
 /// Picks up finished meshes and uploads them.
 fn collect_meshes_system(
-    mut commands: Commands,
     planet: Res<Planet>,
     gpu: Res<GpuRes>,
-    mut meshing: ResMut<Meshing>,
+    meshing: Res<Meshing>,
+    frame: Res<FrameCount>,
+    mut cache: ResMut<MeshCache>,
     mut times: ResMut<StageTimes>,
-    chunks: Query<&Chunk>,
 ) {
     let start = Instant::now();
+    // At most this many uploads a frame: a long frame (or a burst of
+    // finished jobs) must not turn into one huge upload; the rest waits in
+    // the channel for the next frame.
+    const MAX_UPLOADS_PER_FRAME: usize = 512;
+    let results: Vec<MeshResult> =
+        meshing.receiver.lock().map(|r| r.try_iter().take(MAX_UPLOADS_PER_FRAME).collect()).unwrap_or_default();
     let mut meshing_ms = 0.0;
-    let results: Vec<MeshResult> = meshing.receiver.lock().map(|r| r.try_iter().collect()).unwrap_or_default();
+    let uploaded = !results.is_empty();
     for done in results {
-        meshing.in_flight -= 1;
         meshing_ms += done.millis;
         times.chunks_meshed += 1;
-        let Ok(chunk) = chunks.get(done.entity) else { continue };
-        if chunk.version != done.version {
-            continue;
+        if store(&mut cache, &planet.0, &gpu.0, done, frame.0) {
+            times.mesh_errors += 1;
         }
-        let Ok(mesh) = done.result else { continue };
-        // μ follows the error of the LOD the chunk merges into; the
-        // coarsest LOD has none and never morphs.
-        let layout = planet.0.layout();
-        let error =
-            if chunk.key.lod >= layout.max_lod() { f64::from(f32::MAX) } else { layout.voxel_edge(chunk.key.lod + 1) };
-        let uploaded = Uploaded {
-            mesh: gpu.0.upload(&mesh, error),
-            triangles: mesh.triangle_count(),
-            skirt_triangles: mesh.skirt_triangle_count(),
-        };
-        commands.entity(done.entity).insert(uploaded);
+    }
+    if uploaded {
+        // Let wgpu release the staging memory of the uploads now.
+        gpu.0.queue.submit([]);
+        let _ = gpu.0.device.poll(wgpu::PollType::Poll);
     }
     times.meshing_ms = meshing_ms;
     times.meshing_total_ms += meshing_ms;
     times.upload_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
-/// Chunks with a mesh that are not on screen yet and not retiring.
-type ReadyNotShown = (With<Uploaded>, Without<Shown>, Without<Retiring>);
-
-/// Once every job is back, frees retired chunks and shows the new ones in
-/// one step: the old surface stays until the new one is complete.
-fn swap_system(
-    mut commands: Commands,
+/// Chooses what to draw (see the module docs), the skirt depth of every
+/// drawn side, and the meshing jobs, by priority.
+#[expect(clippy::too_many_arguments, reason = "a bevy system names each resource it touches")]
+fn select_system(
+    planet: Res<Planet>,
+    view: Res<View>,
+    lod: Res<Lod>,
+    frame: Res<FrameCount>,
     meshing: Res<Meshing>,
-    mut index: ResMut<ChunkIndex>,
-    retiring: Query<(Entity, &Chunk), With<Retiring>>,
-    fresh: Query<Entity, ReadyNotShown>,
-    shown_count: Query<(), With<Shown>>,
+    options: Res<DrawOptions>,
+    mut cache: ResMut<MeshCache>,
+    mut draw: ResMut<DrawList>,
+    mut times: ResMut<StageTimes>,
 ) {
-    // Nothing on screen yet: show what is ready at once.
-    if meshing.in_flight > 0 && !shown_count.is_empty() {
+    let start = Instant::now();
+    let planet_arc = planet.0.clone();
+    let planet = &*planet.0;
+    let tree = &lod.tree;
+    let layout = planet.layout();
+    let max_lod = layout.max_lod();
+    let eye = view.camera.position;
+    let mut drawn: Vec<ChunkColumn> = Vec::new();
+    let mut ancestors: HashSet<ChunkColumn> = HashSet::new();
+    let mut wanted: Vec<ChunkColumn> = Vec::new();
+    let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
+    for &leaf in tree.visible_leaves() {
+        if cache.ready(leaf) {
+            drawn.push(leaf);
+            continue;
+        }
+        wanted.push(leaf);
+        stand_ins += 1;
+        if leaf.lod > 0 && children(leaf).iter().all(|&c| cache.ready(c)) {
+            drawn.extend(children(leaf));
+            continue;
+        }
+        let mut ancestor = leaf;
+        let mut found = false;
+        while ancestor.lod < max_lod {
+            ancestor = parent(ancestor);
+            if cache.ready(ancestor) {
+                found = true;
+                break;
+            }
+            wanted.push(ancestor);
+        }
+        if found {
+            max_levels = max_levels.max(ancestor.lod - leaf.lod);
+            ancestors.insert(ancestor);
+        } else {
+            holes += 1;
+        }
+    }
+    // A drawn ancestor covers everything under it.
+    let covered = |column: ChunkColumn| {
+        let mut c = column;
+        while c.lod < max_lod {
+            c = parent(c);
+            if ancestors.contains(&c) {
+                return true;
+            }
+        }
+        false
+    };
+    let mut columns: Vec<ChunkColumn> = drawn.into_iter().filter(|&c| !covered(c)).collect();
+    columns.extend(ancestors.iter().copied().filter(|&c| !covered(c)));
+    columns.sort_unstable();
+    columns.dedup();
+    let set: HashSet<ChunkColumn> = columns.iter().copied().collect();
+    let mut min_radius = f64::INFINITY;
+    draw.columns = columns
+        .iter()
+        .map(|&column| {
+            if let Some(cached) = cache.columns.get_mut(&column) {
+                cached.last_used = frame.0;
+            }
+            if let Ok(bounds) = planet.surface_bounds(column) {
+                min_radius = min_radius.min(bounds.min_radius);
+            }
+            (column, chunk_draw(planet, column, &set, *options))
+        })
+        .collect();
+    draw.holes = holes;
+    draw.stand_ins = stand_ins;
+    draw.max_stand_in_levels = max_levels;
+    draw.min_surface_radius = min_radius;
+
+    // Jobs: every chunk of a wanted column not meshed and not running, the
+    // largest projected voxel first.
+    let k = tree.settings().screen_space().map_or(1.0, |s| s.k());
+    let mut jobs = Vec::new();
+    let mut seen = HashSet::new();
+    for column in wanted {
+        if !seen.insert(column) {
+            continue;
+        }
+        let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
+        let priority = layout.voxel_edge(column.lod) * k / distance;
+        let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(planet, column, frame.0));
+        entry.last_used = frame.0;
+        for &layer in &entry.layers {
+            if !entry.chunks.contains_key(&layer) {
+                jobs.push(Job { priority, key: column.chunk(layer) });
+            }
+        }
+    }
+    if let Ok(mut state) = meshing.state.lock() {
+        state.queue.clear();
+        let running = state.running.clone();
+        state.queue.extend(jobs.into_iter().filter(|job| !running.contains(&job.key)));
+    }
+    spawn_workers(&meshing, &planet_arc);
+    times.select_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// The draw constants of `column` when the columns in `drawn` are drawn:
+/// the error it morphs towards and, per side, a skirt as deep as the LOD
+/// drawn across that side needs (none next to the same LOD, whose
+/// boundary vertices are shared exactly).
+fn chunk_draw(
+    planet: &ProceduralPlanet,
+    column: ChunkColumn,
+    drawn: &HashSet<ChunkColumn>,
+    options: DrawOptions,
+) -> ChunkDraw {
+    let layout = planet.layout();
+    let max_lod = layout.max_lod();
+    let parent_error = match options.morph {
+        MorphRule::Own => planet.geometric_error(column.lod),
+        _ if column.lod >= max_lod => f64::INFINITY,
+        _ => layout.voxel_edge(column.lod + 1),
+    };
+    let mut skirt_depths = [0.0f32; 4];
+    if !options.skirts {
+        return ChunkDraw { parent_error, skirt_depths };
+    }
+    for (depth, side) in skirt_depths.iter_mut().zip(FaceDirection::HORIZONTAL) {
+        let Some(edge) = side.face_edge() else { continue };
+        let mut across = layout.neighbor(column.chunk(0), edge).column();
+        if drawn.contains(&across) {
+            continue;
+        }
+        // A coarser column drawn across (an ancestor of the same-LOD
+        // neighbour), else finer ones: the deepest a finer side can need is
+        // the depth for the same LOD.
+        let mut other = column.lod;
+        while across.lod < max_lod {
+            across = parent(across);
+            if drawn.contains(&across) {
+                other = across.lod;
+                break;
+            }
+        }
+        *depth = skirt_depth(planet, column.lod, other) as f32;
+    }
+    ChunkDraw { parent_error, skirt_depths }
+}
+
+thread_local! {
+    static BUFFER: std::cell::RefCell<ChunkMeshBuffer> = std::cell::RefCell::new(ChunkMeshBuffer::new());
+}
+
+/// Starts workers until every meshing thread has one or the queue is empty.
+/// A worker takes the top job, meshes it and sends it back, until the queue
+/// is empty; nothing ever waits for it.
+fn spawn_workers(meshing: &Meshing, planet: &Arc<ProceduralPlanet>) {
+    loop {
+        let queued = meshing.state.lock().map_or(0, |s| s.queue.len());
+        let workers = meshing.workers.load(Ordering::Acquire);
+        if queued == 0 || workers >= meshing.max_workers {
+            return;
+        }
+        meshing.workers.fetch_add(1, Ordering::AcqRel);
+        let (state, workers, sender, options) =
+            (meshing.state.clone(), meshing.workers.clone(), meshing.sender.clone(), meshing.options);
+        let planet = planet.clone();
+        meshing.pool.spawn(move || {
+            loop {
+                let job = state.lock().ok().and_then(|mut s| {
+                    let job = s.queue.pop()?;
+                    s.running.insert(job.key);
+                    Some(job)
+                });
+                let Some(job) = job else { break };
+                let start = Instant::now();
+                let result = BUFFER.with(|buffer| {
+                    mesh_chunk(
+                        &*planet,
+                        job.key,
+                        &ChunkLodContext::uniform(job.key.lod),
+                        options,
+                        &mut buffer.borrow_mut(),
+                    )
+                    .map(|mesh| cpu_mesh(&mesh))
+                });
+                let millis = start.elapsed().as_secs_f64() * 1e3;
+                // Out of the running set only once the result is on its way,
+                // so the next queue refresh cannot ask for it again.
+                let _ = sender.send(MeshResult { key: job.key, result, millis });
+                if let Ok(mut s) = state.lock() {
+                    s.running.remove(&job.key);
+                }
+            }
+            workers.fetch_sub(1, Ordering::AcqRel);
+        });
+    }
+}
+
+/// Frees columns out of use for a while, and the least recently used ones
+/// past the cache's budget (never the face roots, never what this frame
+/// draws or wants); every 10 frames.
+fn free_system(lod: Res<Lod>, frame: Res<FrameCount>, mut cache: ResMut<MeshCache>) {
+    if !frame.0.is_multiple_of(10) {
         return;
     }
-    for (entity, chunk) in &retiring {
-        index.0.remove(&chunk.key);
-        commands.entity(entity).despawn();
+    let max_lod = lod.tree.max_lod();
+    let limit = cache.free_after_frames;
+    cache.columns.retain(|column, cached| column.lod == max_lod || frame.0.saturating_sub(cached.last_used) <= limit);
+    let mut held = cache.chunks();
+    if held <= cache.max_chunks {
+        return;
     }
-    for entity in &fresh {
-        commands.entity(entity).insert(Shown);
+    let mut old: Vec<(u64, ChunkColumn)> = cache
+        .columns
+        .iter()
+        .filter(|(column, cached)| column.lod != max_lod && cached.last_used < frame.0)
+        .map(|(column, cached)| (cached.last_used, *column))
+        .collect();
+    old.sort_unstable();
+    for (_, column) in old {
+        if held <= cache.max_chunks {
+            break;
+        }
+        if let Some(cached) = cache.columns.remove(&column) {
+            held -= cached.chunks.len();
+        }
     }
 }
 

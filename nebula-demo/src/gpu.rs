@@ -5,7 +5,9 @@ use std::num::NonZeroU64;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
-use nebula_meshing::ChunkMesh;
+use nebula_meshing::{ChunkDraw, RenderVertex, split_high_low};
+
+use crate::app::{CpuMesh, drawn_ranges};
 use wgpu::util::DeviceExt;
 
 /// The colour format of the offscreen target: plain UNORM, so the clear
@@ -14,6 +16,8 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Dynamic uniform offsets must be multiples of this.
 const CHUNK_UNIFORM_STRIDE: u64 = 256;
+/// The part of a chunk's uniform slot the shader reads.
+const CHUNK_UNIFORM_BYTES: u64 = 32;
 
 /// Errors of the GPU side.
 #[derive(Debug, thiserror::Error)]
@@ -29,29 +33,21 @@ pub enum GpuError {
     Readback(String),
 }
 
-/// A vertex as the GPU reads it (the layout of `nebula_meshing::MeshVertex`).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuVertex {
-    position: [f32; 3],
-    normal: [f32; 3],
-    morph_target: [f32; 3],
-    packed: u32,
-}
-
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct FrameUniform {
     view_proj: [[f32; 4]; 4],
     sun: [f32; 4],
     params: [f32; 4],
+    eye_high: [f32; 4],
+    eye_low: [f32; 4],
 }
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct ChunkUniform {
-    offset: [f32; 4],
     info: [f32; 4],
+    skirt_depths: [f32; 4],
     _pad: [f32; 56],
 }
 
@@ -77,15 +73,14 @@ pub enum DebugView {
 pub struct GpuMesh {
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
-    index_count: u32,
-    /// f64 world position the vertices are relative to.
-    pub origin: DVec3,
+    surface_indices: usize,
+    skirt_ranges: [std::ops::Range<usize>; 4],
     /// The chunk's LOD.
     pub lod: u8,
-    /// δ(L) used for geomorphing, metres.
-    pub geometric_error: f32,
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
+    /// Bytes of GPU memory the buffers hold.
+    pub bytes: u64,
 }
 
 /// What a frame draws: the view and the per-frame constants.
@@ -190,7 +185,7 @@ impl Gpu {
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Uniform,
                     has_dynamic_offset: true,
-                    min_binding_size: NonZeroU64::new(32),
+                    min_binding_size: NonZeroU64::new(CHUNK_UNIFORM_BYTES),
                 },
                 count: None,
             }],
@@ -200,7 +195,9 @@ impl Gpu {
             bind_group_layouts: &[Some(&frame_layout), Some(&chunk_layout)],
             immediate_size: 0,
         });
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Uint32];
+        // The layout of `nebula_meshing::RenderVertex`.
+        let attributes =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Snorm16x2, 4 => Uint32];
         let make_pipeline = |polygon_mode: wgpu::PolygonMode, label: &str| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
@@ -210,7 +207,7 @@ impl Gpu {
                     entry_point: Some("vs_main"),
                     compilation_options: Default::default(),
                     buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: size_of::<GpuVertex>() as u64,
+                        array_stride: size_of::<RenderVertex>() as u64,
                         step_mode: wgpu::VertexStepMode::Vertex,
                         attributes: &attributes,
                     })],
@@ -290,69 +287,60 @@ impl Gpu {
         Some(config)
     }
 
-    /// Uploads a chunk mesh.
+    /// Uploads a chunk mesh in GPU form; `key_id` colours the chunk view.
     #[must_use]
-    pub fn upload(&self, mesh: &ChunkMesh, geometric_error: f64) -> GpuMesh {
-        let vertices: Vec<GpuVertex> = mesh
-            .vertices()
-            .iter()
-            .map(|v| GpuVertex {
-                position: v.position.to_array(),
-                normal: v.normal.to_array(),
-                morph_target: v.morph_target.to_array(),
-                packed: u32::from(v.material) | (u32::from(v.flags) << 16),
-            })
-            .collect();
-        let label = format!("chunk {:?}", mesh.key());
+    pub fn upload(&self, mesh: &CpuMesh, lod: u8, key_id: u32, label: &str) -> GpuMesh {
+        let (vertices, indices) = (&mesh.vertices, &mesh.indices);
         // An empty chunk still gets (tiny) buffers; it is never drawn.
-        let zero_vertex = [GpuVertex::zeroed()];
+        let zero_vertex = [RenderVertex::zeroed()];
         let vertex_bytes: &[u8] =
-            if vertices.is_empty() { bytemuck::cast_slice(&zero_vertex) } else { bytemuck::cast_slice(&vertices) };
-        let index_bytes: &[u8] = if mesh.indices().is_empty() {
-            bytemuck::cast_slice(&[0u32; 3])
-        } else {
-            bytemuck::cast_slice(mesh.indices())
-        };
+            if vertices.is_empty() { bytemuck::cast_slice(&zero_vertex) } else { bytemuck::cast_slice(vertices) };
+        let index_bytes: &[u8] =
+            if indices.is_empty() { bytemuck::cast_slice(&[0u32; 3]) } else { bytemuck::cast_slice(indices) };
         let vertex_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(&label),
+            label: Some(label),
             contents: vertex_bytes,
             usage: wgpu::BufferUsages::VERTEX,
         });
         let index_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(&label),
+            label: Some(label),
             contents: index_bytes,
             usage: wgpu::BufferUsages::INDEX,
         });
         GpuMesh {
             vertices: vertex_buffer,
             indices: index_buffer,
-            index_count: mesh.indices().len() as u32,
-            origin: mesh.origin(),
-            lod: mesh.key().lod,
-            geometric_error: geometric_error as f32,
-            id: {
-                let k = mesh.key();
-                (k.x.wrapping_mul(73_856_093)
-                    ^ k.y.wrapping_mul(19_349_663)
-                    ^ (k.layer as u32).wrapping_mul(83_492_791)
-                    ^ (k.face as u32) << 3)
-                    % 4096
-            },
+            surface_indices: mesh.surface_indices,
+            skirt_ranges: mesh.skirt_ranges.clone(),
+            lod,
+            id: key_id % 4096,
+            bytes: (vertex_bytes.len() + index_bytes.len()) as u64,
         }
     }
 
-    /// Draws `meshes` into `target` (of `size`), clearing to the background.
-    pub fn draw(&mut self, target: &wgpu::TextureView, size: (u32, u32), frame: &FrameParams, meshes: &[&GpuMesh]) {
+    /// Draws `meshes`, each with its per-chunk draw constants, into
+    /// `target` (of `size`), clearing to the background.
+    pub fn draw(
+        &mut self,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        frame: &FrameParams,
+        meshes: &[(&GpuMesh, ChunkDraw)],
+    ) {
         self.ensure_depth(size);
         let aspect = size.0 as f32 / size.1.max(1) as f32;
-        // Camera-relative: the eye is the origin of the render space, and
-        // each chunk's offset (origin − eye) is computed in f64 below.
+        // Camera-relative: the eye is the origin of the render space; the
+        // shader forms vertex − eye from high and low f32 parts of both
+        // (`nebula_meshing::RenderVertex`), the same in every chunk.
         let view_proj = view_projection(frame.forward, frame.up, frame.fov_y_degrees, aspect);
         let sun = Vec3::new(0.4, 0.8, 0.45).normalize();
+        let (eye_high, eye_low) = split_high_low(frame.eye);
         let uniform = FrameUniform {
             view_proj: view_proj.to_cols_array_2d(),
             sun: [sun.x, sun.y, sun.z, 0.25],
             params: [frame.k, frame.threshold_px, frame.view as u32 as f32, if frame.morph { 1.0 } else { 0.0 }],
+            eye_high: [eye_high[0], eye_high[1], eye_high[2], 0.0],
+            eye_low: [eye_low[0], eye_low[1], eye_low[2], 0.0],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
         if meshes.len() as u64 > self.chunk_capacity {
@@ -364,13 +352,10 @@ impl Gpu {
         }
         let chunk_uniforms: Vec<ChunkUniform> = meshes
             .iter()
-            .map(|m| {
-                let offset = (m.origin - frame.eye).as_vec3();
-                ChunkUniform {
-                    offset: [offset.x, offset.y, offset.z, m.geometric_error],
-                    info: [f32::from(m.lod), f32::from(frame.max_lod), m.id as f32, 0.0],
-                    _pad: [0.0; 56],
-                }
+            .map(|(m, draw)| ChunkUniform {
+                info: [f32::from(m.lod), f32::from(frame.max_lod), m.id as f32, draw.parent_error.min(1e30) as f32],
+                skirt_depths: draw.skirt_depths,
+                _pad: [0.0; 56],
             })
             .collect();
         if !chunk_uniforms.is_empty() {
@@ -406,14 +391,18 @@ impl Gpu {
             };
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
-            for (n, mesh) in meshes.iter().enumerate() {
-                if mesh.index_count == 0 {
+            for (n, (mesh, draw)) in meshes.iter().enumerate() {
+                // The surface and only the skirts lowered this frame.
+                let ranges = drawn_ranges(mesh.surface_indices, &mesh.skirt_ranges, draw);
+                if ranges.iter().all(std::ops::Range::is_empty) {
                     continue;
                 }
                 pass.set_bind_group(1, &self.chunk_group, &[(n as u64 * CHUNK_UNIFORM_STRIDE) as u32]);
                 pass.set_vertex_buffer(0, mesh.vertices.slice(..));
                 pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                for range in ranges.into_iter().filter(|r| !r.is_empty()) {
+                    pass.draw_indexed(range.start as u32..range.end as u32, 0, 0..1);
+                }
             }
         }
         self.queue.submit([encoder.finish()]);
@@ -453,7 +442,7 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                 buffer: &buffer,
                 offset: 0,
-                size: NonZeroU64::new(32),
+                size: NonZeroU64::new(CHUNK_UNIFORM_BYTES),
             }),
         }],
     });

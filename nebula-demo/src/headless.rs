@@ -6,10 +6,11 @@ use std::time::Instant;
 
 use anyhow::Context;
 use nebula_lod::LodSettings;
-use nebula_math::{DVec3, ray_sphere};
+use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
-use crate::app::{FrameFigures, PlanetApp, View, camera};
+use crate::app::{DrawList, FrameFigures, PlanetApp, View, camera};
+use crate::crack::CrackCount;
 use crate::gpu::{DebugView, Gpu, GpuError, Offscreen};
 
 /// One picture to take.
@@ -30,7 +31,7 @@ pub struct Shot {
     pub background: Option<[u8; 3]>,
     /// SSE threshold τ, pixels.
     pub sse_px: f64,
-    /// Frames to run before the picture (then it waits for meshing).
+    /// Frames to run before the picture (then it waits until settled).
     pub frames: u32,
     /// Debug view.
     pub view: DebugView,
@@ -71,15 +72,30 @@ pub struct Picture {
 pub struct Figures {
     /// What the frame drew.
     pub frame: FrameFigures,
-    /// Background pixels inside the silhouette of the sphere of minimum
-    /// surface radius under the leaves in view (when a background was
-    /// given).
+    /// Crack pixels by both rules (when a background was given; see
+    /// [`crate::crack`]).
     pub crack_pixels: Option<usize>,
-    /// Pixels inside that silhouette.
+    /// The oracle's breakdown.
+    pub cracks: CrackCount,
+    /// Pixels whose ray meets the sentinel sphere.
     pub planet_pixels: usize,
     /// Frames run before the picture.
     pub frames: u32,
+    /// Milliseconds from the start to the first complete frame (no stand-in
+    /// more than [`MAX_FIRST_FRAME_LEVELS`] LODs coarser than its leaf).
+    pub first_frame_ms: f64,
+    /// Milliseconds from the start to the settled view.
+    pub settled_ms: f64,
+    /// Milliseconds the draw and read-back took.
+    pub draw_ms: f64,
+    /// Milliseconds the crack oracle took.
+    pub check_ms: f64,
 }
+
+/// The first frame is drawn once no visible leaf is stood in for by an
+/// ancestor more than this many LODs coarser: close enough that the stand-in
+/// lies within a few pixels of the truth, never over the camera.
+pub const MAX_FIRST_FRAME_LEVELS: u8 = 3;
 
 /// Opens a GPU for offscreen work.
 ///
@@ -136,11 +152,30 @@ pub fn shot_view(shot: &Shot) -> anyhow::Result<View> {
     Ok(view)
 }
 
-/// Runs `shot.frames` frames, then waits until no meshing job is out, then
-/// draws and reads back.
+/// Steps `app` until it can draw a complete first frame (stand-ins at
+/// most [`MAX_FIRST_FRAME_LEVELS`] LODs coarse), meshing at full speed.
+/// Returns the milliseconds it took.
 ///
 /// # Errors
-/// Read-back failures.
+/// If that takes more than 10 minutes.
+pub fn prime(app: &mut PlanetApp) -> anyhow::Result<f64> {
+    let started = Instant::now();
+    loop {
+        app.step();
+        let list = app.world.resource::<DrawList>();
+        if list.holes == 0 && list.max_stand_in_levels <= MAX_FIRST_FRAME_LEVELS {
+            return Ok(started.elapsed().as_secs_f64() * 1e3);
+        }
+        anyhow::ensure!(started.elapsed().as_secs() < 600, "no complete frame in 10 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+}
+
+/// Runs at least `shot.frames` frames and until the view has settled (no
+/// stand-ins, no jobs), then draws, reads back and counts cracks.
+///
+/// # Errors
+/// Read-back failures, or no settled view in 10 minutes.
 pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     let view = shot_view(shot)?;
     app.set_view(view);
@@ -151,62 +186,65 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
         shot.position.length(),
         min_radius
     );
-    let target = Offscreen::new(app.gpu(), shot.size);
-    let background = shot.background.unwrap_or([20, 26, 38]);
-    let mut frames = 0;
+    app.keep_cpu_meshes(shot.background.is_some());
     let started = Instant::now();
+    let first_frame_ms = prime(app)?;
+    let mut frames = 0;
     loop {
         app.step();
         frames += 1;
-        if frames >= shot.frames && app.jobs_in_flight() == 0 {
-            // One more step lets the swap show the last batch.
-            app.step();
-            if app.jobs_in_flight() == 0 {
-                break;
-            }
+        if frames >= shot.frames && app.settled() {
+            break;
         }
-        if started.elapsed().as_secs() > 600 {
-            anyhow::bail!("meshing did not settle in 10 minutes");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(2));
+        anyhow::ensure!(started.elapsed().as_secs() < 600, "meshing did not settle in 10 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(1));
     }
+    let settled_ms = started.elapsed().as_secs_f64() * 1e3;
+    let mut picture = draw_frame(app, shot, &view)?;
+    picture.figures.frames = frames;
+    picture.figures.first_frame_ms = first_frame_ms;
+    picture.figures.settled_ms = settled_ms;
+    Ok(picture)
+}
+
+/// Draws the app's current draw list from `view`, reads it back and counts
+/// cracks (with a background).
+///
+/// # Errors
+/// Read-back failures.
+pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
+    let started = Instant::now();
+    let target = Offscreen::new(app.gpu(), shot.size);
+    let background = shot.background.unwrap_or([20, 26, 38]);
     app.draw(&target.view, shot.size, background, shot.view);
     let rgba = target.read(app.gpu()).context("reading the image back")?;
-    let sentinel_radius = app.view_min_surface_radius();
-    let (crack_pixels, planet_pixels) = count_cracks(&rgba, shot, &view, sentinel_radius, background);
+    let draw_ms = started.elapsed().as_secs_f64() * 1e3;
+    let started = Instant::now();
+    let cracks = match shot.background {
+        Some(background) => crate::crack::count_cracks(
+            &rgba,
+            shot.size,
+            background,
+            &view.camera,
+            shot.fov_y_degrees,
+            &app.drawn_geometry(),
+        ),
+        None => CrackCount::default(),
+    };
     Ok(Picture {
         adapter: app.gpu().adapter_name.clone(),
         figures: Figures {
             frame: app.frame_figures(),
-            crack_pixels: shot.background.map(|_| crack_pixels),
-            planet_pixels,
-            frames,
+            crack_pixels: shot.background.map(|_| cracks.cracks),
+            planet_pixels: cracks.planet_pixels,
+            cracks,
+            draw_ms,
+            check_ms: started.elapsed().as_secs_f64() * 1e3,
+            ..Figures::default()
         },
         rgba,
         size: shot.size,
     })
-}
-
-/// Background-coloured pixels whose ray meets the sphere of `min_radius`
-/// (a crack: the surface must cover that sphere), and how many pixels meet
-/// it at all.
-fn count_cracks(rgba: &[u8], shot: &Shot, view: &View, min_radius: f64, background: [u8; 3]) -> (usize, usize) {
-    let (width, height) = shot.size;
-    let (mut cracks, mut planet) = (0, 0);
-    for py in 0..height {
-        for px in 0..width {
-            let dir = view.camera.pixel_ray(shot.fov_y_degrees, shot.size, (px, py));
-            if ray_sphere(view.camera.position, dir, min_radius).is_none() {
-                continue;
-            }
-            planet += 1;
-            let i = ((py * width + px) * 4) as usize;
-            if rgba[i..i + 3] == background {
-                cracks += 1;
-            }
-        }
-    }
-    (cracks, planet)
 }
 
 /// Writes RGBA8 pixels as a PNG.
@@ -242,20 +280,34 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
     serde_json::json!({
         "adapter": adapter,
         "frames": figures.frames,
+        "first_frame_ms": figures.first_frame_ms,
+        "settled_ms": figures.settled_ms,
+        "draw_and_read_back_ms": figures.draw_ms,
+        "crack_check_ms": figures.check_ms,
         "chunks": f.chunks,
+        "chunks_held": f.chunks_held,
+        "gpu_mesh_bytes": f.gpu_bytes,
         "triangles": f.triangles,
         "skirt_triangles": f.skirt_triangles,
+        "skirt_triangles_held": f.skirt_triangles_held,
+        "stand_ins": f.stand_ins,
         "lod_histogram": histogram,
         "max_neighbor_lod_diff": f.max_neighbor_lod_diff,
         "cpu_ms": {
             "lod": f.times.lod_ms,
+            "select": f.times.select_ms,
             "meshing": f.times.meshing_ms,
             "meshing_total": f.times.meshing_total_ms,
             "upload": f.times.upload_ms,
             "render": f.times.render_ms,
         },
         "chunks_meshed": f.times.chunks_meshed,
+        "mesh_errors": f.times.mesh_errors,
         "crack_pixels": figures.crack_pixels,
+        "crack_pixels_sphere_rule": figures.cracks.sphere_cracks,
+        "crack_pixels_geometry_rule": figures.cracks.geometry_cracks,
+        "crack_samples": figures.cracks.samples,
+        "crack_rays_cast": figures.cracks.rays_cast,
         "planet_pixels": figures.planet_pixels,
     })
 }

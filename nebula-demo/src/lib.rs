@@ -2,12 +2,14 @@
 //! drive, and the pieces the windowed binary shares.
 //!
 //! Structure (after wgpu's examples): [`gpu`] owns device, pipeline and
-//! buffers and draws what it is given; [`app`] is the bevy_ecs world of
-//! chunk entities with systems for the LOD update, rayon meshing jobs that
-//! never block a frame, upload, and the hole-free swap; [`headless`]
-//! renders a camera to an RGBA image, counts crack pixels and writes the
-//! report; `main.rs` adds the window, input and the command line. No LOD or
-//! meshing logic lives here: that is `nebula_lod` and `nebula_meshing`.
+//! buffers and draws what it is given; [`app`] is the bevy_ecs world with
+//! systems for the LOD update, prioritised meshing jobs on rayon that never
+//! block a frame, upload, and the choice of what to draw so that every
+//! frame is complete; [`headless`] renders a camera to an RGBA image and
+//! writes the report; [`crack`] is the crack oracle; [`flight`] flies a
+//! keyframed path in real time and checks every frame; `main.rs` adds the
+//! window, input and the command line. No LOD or meshing logic lives here:
+//! that is `nebula_lod` and `nebula_meshing`.
 //!
 //! ```no_run
 //! use nebula_demo::headless::{Shot, render_shot};
@@ -19,6 +21,8 @@
 //! ```
 
 pub mod app;
+pub mod crack;
+pub mod flight;
 pub mod gpu;
 pub mod headless;
 

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
-use nebula_demo::app::{PlanetApp, View, camera};
+use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, View, camera};
 use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::planet_settings;
@@ -75,9 +75,29 @@ struct Args {
     /// Debug view.
     #[arg(long, value_enum, default_value_t = DebugView::Shaded)]
     view: DebugView,
-    /// Write the frame's figures as JSON here.
+    /// Write the frame's figures as JSON here (with --flight: every frame's
+    /// and the worst frame).
     #[arg(long, value_name = "PATH")]
     report: Option<PathBuf>,
+    /// Fly a keyframed camera path headless: a JSON array of
+    /// {"t": s, "pos": [x,y,z], "look_at": [x,y,z], "up": [x,y,z]} (up
+    /// optional), rendered in real time at --fps, meshing never waited for.
+    #[arg(long, value_name = "PATH")]
+    flight: Option<PathBuf>,
+    /// Frames per second of a flight: frame k shows time k/fps, drawn no
+    /// earlier than k/fps seconds after the first.
+    #[arg(long, value_name = "N", default_value_t = 30.0)]
+    fps: f64,
+    /// Write every frame of a flight here as 00000.png, 00001.png, …
+    #[arg(long, value_name = "DIR")]
+    frames_dir: Option<PathBuf>,
+    /// What drives the geomorph (for debugging; `own` is the first
+    /// version's rule, which draws LOD 0 fully morphed).
+    #[arg(long, value_enum, default_value_t = MorphRule::Parent)]
+    morph: MorphRule,
+    /// Draw LOD seams without skirts (for debugging: they open).
+    #[arg(long)]
+    no_skirts: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -157,11 +177,14 @@ fn run(args: Args) -> anyhow::Result<()> {
         view: args.view,
     };
     shot_view(&shot)?;
+    if let Some(path) = &args.flight {
+        return flight(planet, &shot, path, &args);
+    }
     if args.headless {
         return headless(planet, &shot, &args);
     }
     match EventLoop::new() {
-        Ok(event_loop) => windowed(event_loop, planet, shot),
+        Ok(event_loop) => windowed(event_loop, planet, shot, draw_options(&args)),
         Err(error) => {
             eprintln!("nebula-demo: no display ({error}); rendering headless instead");
             headless(planet, &shot, &args)
@@ -212,9 +235,14 @@ fn lod_settings(shot: &Shot) -> LodSettings {
     }
 }
 
+fn draw_options(args: &Args) -> DrawOptions {
+    DrawOptions { skirts: !args.no_skirts, morph: args.morph }
+}
+
 fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = nebula_demo::headless::headless_gpu()?;
     let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    app.set_draw_options(draw_options(args));
     if args.screenshot.is_none() && args.camera_pos.is_none() {
         // No camera given: an orbit-to-surface sequence.
         let dir = DVec3::new(0.35, 0.55, 0.76).normalize();
@@ -251,6 +279,27 @@ fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Resul
     Ok(())
 }
 
+fn flight(planet: ProceduralPlanet, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
+    let gpu = nebula_demo::headless::headless_gpu()?;
+    let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    app.set_draw_options(draw_options(args));
+    let report = nebula_demo::flight::fly(&mut app, &flight, shot, args.fps, args.frames_dir.as_deref())?;
+    let json = report.json();
+    println!(
+        "flew {} frames (first frame after {:.0} ms); worst frame: {}",
+        report.frames.len(),
+        report.first_frame_ms,
+        json["worst_frame"]
+    );
+    if let Some(report_path) = &args.report {
+        std::fs::write(report_path, serde_json::to_string_pretty(&json)?)
+            .with_context(|| format!("writing {}", report_path.display()))?;
+    }
+    Ok(())
+}
+
 fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
     app.world.resource::<nebula_demo::app::Planet>().0.surface_point(dir).length()
 }
@@ -258,6 +307,7 @@ fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
 /// The windowed demo.
 struct Windowed {
     planet: Option<ProceduralPlanet>,
+    options: DrawOptions,
     shot: Shot,
     state: Option<WindowState>,
     eye: DVec3,
@@ -278,10 +328,16 @@ struct WindowState {
     app: PlanetApp,
 }
 
-fn windowed(event_loop: EventLoop<()>, planet: ProceduralPlanet, shot: Shot) -> anyhow::Result<()> {
+fn windowed(
+    event_loop: EventLoop<()>,
+    planet: ProceduralPlanet,
+    shot: Shot,
+    options: DrawOptions,
+) -> anyhow::Result<()> {
     let forward = (shot.look_at - shot.position).normalize();
     let mut demo = Windowed {
         planet: Some(planet),
+        options,
         eye: shot.position,
         yaw: 0.0,
         pitch: 0.0,
@@ -409,7 +465,8 @@ impl ApplicationHandler for Windowed {
             let size = window.inner_size();
             let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
             surface.configure(&gpu.device, &config);
-            let app = PlanetApp::new(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
+            let mut app = PlanetApp::new(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
+            app.set_draw_options(self.options);
             Ok(WindowState { window, surface, config, app })
         })();
         match result {

@@ -7,24 +7,32 @@ struct Frame {
     sun: vec4<f32>,
     // x: K (pixels per radian), y: τ (pixels), z: debug view, w: morphing on (1) / off (0).
     params: vec4<f32>,
+    // The eye's f64 world position as high + low f32 parts.
+    eye_high: vec4<f32>,
+    eye_low: vec4<f32>,
 };
 
 struct Chunk {
-    // xyz: chunk origin − camera (computed in f64 on the CPU), w: δ of the parent LOD in metres.
-    offset: vec4<f32>,
-    // x: LOD, y: max LOD, z: chunk id (for colouring).
+    // x: LOD, y: max LOD, z: chunk id (for colouring), w: error of the LOD
+    // the chunk merges into (its parent's voxel edge), metres.
     info: vec4<f32>,
+    // Skirt depth per horizontal side (+X, −X, +Z, −Z as in
+    // nebula_math::FaceDirection::HORIZONTAL), metres.
+    skirt_depths: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var<uniform> chunk: Chunk;
 
+// nebula_meshing::RenderVertex.
 struct VertexIn {
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) morph_target: vec3<f32>,
-    // low 16 bits: material, high 16 bits: flags (1 = skirt, 2 = constrained).
-    @location(3) packed: u32,
+    @location(0) position_high: vec3<f32>,
+    @location(1) position_low: vec3<f32>,
+    @location(2) morph_offset: vec3<f32>,
+    @location(3) normal: vec2<f32>,
+    // low 16 bits: material, high 16 bits: flags (1 = skirt, 2 = constrained,
+    // bits 2–3: the side a skirt hangs on).
+    @location(4) packed: u32,
 };
 
 struct VertexOut {
@@ -36,29 +44,51 @@ struct VertexOut {
 };
 
 // μ = smoothstep(clamp((ρ_p/τ − 1) / (1.4 − 1), 0, 1)), ρ_p = δ_parent·K / D:
-// the twin of nebula_math::morph_factor. δ_parent is the error of the LOD the
-// chunk merges into: 1 where this LOD is needed, 0 where the parent would do.
-// Every input is global or a function of the vertex position, so vertices
-// shared by neighbouring chunks morph identically.
+// the twin of nebula_math::morph_factor (and RenderVertex::drawn_relative).
+// δ_parent is the error of the LOD the chunk merges into: μ = 1 where this
+// LOD is needed, 0 where the parent would do. Every input is global, per LOD
+// or a function of the vertex position, so vertices shared by neighbouring
+// chunks morph identically.
 fn morph_factor(relative: vec3<f32>) -> f32 {
     let distance = max(length(relative), 1e-3);
-    let rho = chunk.offset.w * frame.params.x / distance;
+    let rho = chunk.info.w * frame.params.x / distance;
     let x = clamp((rho / frame.params.y - 1.0) / 0.4, 0.0, 1.0);
     return x * x * (3.0 - 2.0 * x);
+}
+
+// Octahedral normal (nebula_meshing::decode_normal).
+fn decode_normal(e: vec2<f32>) -> vec3<f32> {
+    var n = vec3<f32>(e.x, e.y, 1.0 - abs(e.x) - abs(e.y));
+    let t = max(-n.z, 0.0);
+    n.x = n.x + select(t, -t, n.x >= 0.0);
+    n.y = n.y + select(t, -t, n.y >= 0.0);
+    return normalize(n);
 }
 
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
     var out: VertexOut;
+    // Vertex − eye from the high and low parts: a function of the vertex's
+    // canonical world position and the frame only, never of the chunk, so a
+    // vertex shared by two chunks lands on the same clip position in both.
+    var relative = (in.position_high - frame.eye_high.xyz) + (in.position_low - frame.eye_low.xyz);
     var mu = 1.0;
     if (frame.params.w > 0.5) {
-        mu = morph_factor(chunk.offset.xyz + in.position);
+        mu = morph_factor(relative);
+        relative = relative + (1.0 - mu) * in.morph_offset;
     }
-    let local = mix(in.morph_target, in.position, mu);
-    out.clip = frame.view_proj * vec4<f32>(chunk.offset.xyz + local, 1.0);
-    out.normal = in.normal;
+    let flags = in.packed >> 16u;
+    if ((flags & 1u) != 0u) {
+        // A skirt vertex hangs from the (morphed) surface vertex towards the
+        // planet centre, as deep as its side needs this frame.
+        let centre = -(frame.eye_high.xyz + frame.eye_low.xyz);
+        let depth = chunk.skirt_depths[(flags >> 2u) & 3u];
+        relative = relative + normalize(centre - relative) * depth;
+    }
+    out.clip = frame.view_proj * vec4<f32>(relative, 1.0);
+    out.normal = decode_normal(in.normal);
     out.material = in.packed & 0xffffu;
-    out.flags = in.packed >> 16u;
+    out.flags = flags;
     out.morph = mu;
     return out;
 }

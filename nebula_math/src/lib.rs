@@ -53,7 +53,9 @@ pub use face::{CubeCorner, CubeFace, EdgeNeighbor, FaceDirection, FaceEdge};
 pub use glam::{DVec3, I64Vec3, IVec3, Vec3};
 pub use lattice::{Cubesphere, LatticePoint, MAX_RESOLUTION, ray_sphere, relative_position, view_basis};
 pub use sphere_map::{SphereMap, area_distortion};
-pub use sse::{MORPH_FULL, ScreenSpace, horizon_distance, morph_factor, projection_constant, projection_constant_small_angle};
+pub use sse::{
+    MORPH_FULL, ScreenSpace, horizon_distance, morph_factor, projection_constant, projection_constant_small_angle,
+};
 
 #[cfg(test)]
 mod tests;

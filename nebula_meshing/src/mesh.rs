@@ -109,6 +109,8 @@ pub struct ChunkMesh {
     /// Depth of the skirt generated on each horizontal side (index as in
     /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none.
     pub(crate) skirt_depths: [f32; 4],
+    /// The index range of each side's skirt triangles.
+    pub(crate) skirt_ranges: [std::ops::Range<usize>; 4],
 }
 
 impl ChunkMesh {
@@ -126,7 +128,18 @@ impl ChunkMesh {
             surface_index_count: 0,
             skirt_triangles: 0,
             skirt_depths: [0.0; 4],
+            skirt_ranges: [0..0, 0..0, 0..0, 0..0],
         }
+    }
+
+    /// The range of [`ChunkMesh::indices`] holding each side's skirt (index
+    /// as in [`FaceDirection::HORIZONTAL`]; the last
+    /// [`generate_skirt`](crate::generate_skirt) call on that side). A
+    /// renderer drawing skirts at draw-time depths draws only the sides it
+    /// lowers.
+    #[must_use]
+    pub fn skirt_index_ranges(&self) -> [std::ops::Range<usize>; 4] {
+        self.skirt_ranges.clone()
     }
 
     /// The depth each side's skirt was generated with (index as in
@@ -214,6 +227,13 @@ impl ChunkMesh {
             VertexSource::Surface { local, .. } => self.layout.lattice_point(self.key, local.map(i64::from)).ok(),
             _ => None,
         }
+    }
+
+    /// The local lattice coordinates (each in `0..=32`, at the chunk's LOD)
+    /// of surface vertex `index`; `None` for skirt and pushed vertices.
+    #[must_use]
+    pub fn local_lattice(&self, index: usize) -> Option<[i32; 3]> {
+        self.local(index)
     }
 
     /// Whether vertex `index` was moved onto a coarser neighbour's edge.

@@ -124,12 +124,16 @@ pub fn generate_skirt(
             )
         })
     };
+    let first = mesh.indices.len();
     for (a, b) in mesh.outline_edges(edge) {
         let (a_low, b_low) = (bottom_of(mesh, a), bottom_of(mesh, b));
         // The surface runs a → b; the skirt continues it, so it runs b → a.
-        mesh.indices.extend([b, a, a_low, b, a_low, b_low]);
+        // Each triangle starts at a skirt vertex (same winding, rotated) so
+        // that flat-interpolated flags mark the whole triangle as skirt.
+        mesh.indices.extend([a_low, b, a, b_low, b, a_low]);
         mesh.skirt_triangles += 2;
     }
+    mesh.skirt_ranges[crate::side_index(edge)] = first..mesh.indices.len();
     Ok(())
 }
 

@@ -39,12 +39,7 @@ pub struct EditedSource<S> {
 impl<S: VoxelSource> EditedSource<S> {
     /// Wraps `base` with no edits yet.
     pub fn new(base: S) -> Self {
-        Self {
-            base,
-            fine: HashMap::new(),
-            touched_chunks: HashSet::new(),
-            touched_columns: HashMap::new(),
-        }
+        Self { base, fine: HashMap::new(), touched_chunks: HashSet::new(), touched_columns: HashMap::new() }
     }
 
     /// The unedited source.

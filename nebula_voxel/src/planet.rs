@@ -291,18 +291,19 @@ impl ProceduralPlanet {
     }
 
     /// Voxel `h` (in voxels of `lod`) of a column of height `height` layers:
-    /// its far-corner LOD-0 voxel, solid iff that voxel's centre is below
-    /// the height.
+    /// solid iff its far-corner LOD-0 voxel's centre is below the height.
+    /// The material goes by depth in voxels of `lod`, so the top voxel of a
+    /// column has the surface material at every LOD (no colour pop).
     fn classify(&self, height: f64, h: i64, lod: u8) -> Voxel {
-        let span = self.layout.voxel_span(lod);
-        let layer = (h + 1) * span - 1;
-        let depth = height - (layer as f64 + 0.5);
+        let span = self.layout.voxel_span(lod) as f64;
+        let corner_centre = (h + 1) as f64 * span - 0.5;
+        let depth = height - corner_centre;
         if depth <= 0.0 {
             return Voxel::AIR;
         }
         let height_m = height * self.layer_height;
         let amplitude = self.settings.amplitude;
-        if depth < 1.0 {
+        if depth <= span {
             if height_m > 0.55 * amplitude {
                 Voxel::SNOW
             } else if height_m < 0.03 * amplitude {
@@ -310,7 +311,7 @@ impl ProceduralPlanet {
             } else {
                 Voxel::GRASS
             }
-        } else if depth < 4.0 {
+        } else if depth <= span + 3.0 {
             Voxel::DIRT
         } else {
             Voxel::STONE
@@ -397,9 +398,12 @@ impl VoxelSource for ProceduralPlanet {
         let margin = self.max_slope * step;
         let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;
         // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
-        // column's height H; a solid voxel with air above or beside it lies
-        // below the top, one voxel (span layers) deep at least.
-        let min_layer = ((low - margin).max(-limit) + 0.5 - 2.0 * span).floor() as i64;
+        // column's height H. A solid voxel with air beside it lies down to
+        // the top of the neighbouring voxel column, whose sample is up to
+        // one voxel (span cells) further out: S·span lower still, and its
+        // top again up to a voxel below its H.
+        let neighbour = self.max_slope * span + span;
+        let min_layer = ((low - margin).max(-limit) + 0.5 - span - neighbour).floor() as i64;
         let max_layer = ((high + margin).min(limit) + 0.5).ceil() as i64;
         let sphere = self.layout.sphere();
         Ok(SurfaceBounds {

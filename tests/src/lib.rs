@@ -228,14 +228,23 @@ pub fn cast_cracks(view: &PlanetView, camera: &Camera, width: u32, height: u32) 
             let limit = t_sphere.map_or(f32::INFINITY, |t| (t * 1.0001) as f32);
             let ray = Ray::new(dir.as_vec3a() * 0.0, dir.as_vec3a(), 0.0, limit);
             let mut hit = RayHit::none();
-            let any = bvh.ray_traverse(ray, &mut hit, |_, id| {
+            // The nearest front-facing and back-facing hits, tracked apart:
+            // a ray through an edge where surfaces meet (a non-manifold
+            // chunk corner, say) can touch a back face at the same distance
+            // as a front face, which is no crack.
+            let (mut front, mut back) = (f64::INFINITY, f64::INFINITY);
+            bvh.ray_traverse(ray, &mut hit, |_, id| {
                 let t = &exact[bvh.primitive_indices[id] as usize];
-                ray_hit(&t.v, dir).map_or(f32::INFINITY, |(t, _)| t as f32)
+                if let Some((t, facing)) = ray_hit(&t.v, dir) {
+                    let slot = if facing { &mut front } else { &mut back };
+                    *slot = slot.min(t);
+                }
+                f32::INFINITY
             });
-            let first_is_back = any
-                && ray_hit(&exact[bvh.primitive_indices[hit.primitive_id as usize] as usize].v, dir)
-                    .is_some_and(|(_, front)| !front);
-            let point = eye + dir * t_sphere.unwrap_or(f64::from(hit.t));
+            let nearest = front.min(back);
+            let any = nearest.is_finite();
+            let first_is_back = any && back < front * (1.0 - 1e-9);
+            let point = eye + dir * t_sphere.unwrap_or(nearest);
             let checked = t_sphere.is_some() || any;
             (checked, first_is_back || (t_sphere.is_some() && !any), point, pixel)
         })

@@ -1,0 +1,312 @@
+//! Headless flights: a camera path from keyframes, rendered frame by frame
+//! in real time with meshing running on its own threads, every frame
+//! checked for cracks.
+//!
+//! ```text
+//!   [{"t": 0, "pos": [x, y, z], "look_at": [x, y, z], "up": [x, y, z]}, …]
+//! ```
+//!
+//! `t` in seconds, increasing; `up` optional (default: radial up at the
+//! eye). Position, look-at and up are interpolated linearly between
+//! keyframes. Frame `k` shows flight time `k / fps` and is drawn no earlier
+//! than `k / fps` seconds of wall time after the first frame; the renderer
+//! never waits for meshing, so a frame shows whatever is meshed by then.
+
+use std::path::Path;
+use std::time::Instant;
+
+use nebula_math::DVec3;
+
+use crate::app::PlanetApp;
+use crate::headless::{Figures, Shot, draw_frame, prime, shot_view, write_png};
+
+/// A bad flight file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FlightError {
+    /// Not JSON.
+    #[error("flight is not JSON: {0}")]
+    Json(#[from] serde_json::Error),
+    /// Not a non-empty array of keyframe objects.
+    #[error("flight must be a non-empty JSON array of keyframes, got {0}")]
+    NotAnArray(String),
+    /// A keyframe lacks a field or has one of the wrong shape.
+    #[error("keyframe {index}: {problem}")]
+    BadKeyframe {
+        /// Which keyframe (0-based).
+        index: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Times that do not increase.
+    #[error("keyframe {index}: time {time} s is not after the previous keyframe's {previous} s")]
+    TimeNotIncreasing {
+        /// Which keyframe.
+        index: usize,
+        /// Its time.
+        time: f64,
+        /// The previous keyframe's time.
+        previous: f64,
+    },
+}
+
+/// One keyframe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Keyframe {
+    /// Seconds from the start.
+    pub t: f64,
+    /// Eye, metres, planet centre at the origin.
+    pub pos: DVec3,
+    /// Point looked at.
+    pub look_at: DVec3,
+    /// Up, if given.
+    pub up: Option<DVec3>,
+}
+
+/// A checked camera path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Flight {
+    keys: Vec<Keyframe>,
+}
+
+impl Flight {
+    /// Parses and checks a flight file's text.
+    ///
+    /// # Errors
+    /// [`FlightError`] naming the keyframe and field at fault.
+    pub fn from_json(text: &str) -> Result<Self, FlightError> {
+        let value: serde_json::Value = serde_json::from_str(text)?;
+        let items = value.as_array().filter(|a| !a.is_empty()).ok_or_else(|| {
+            let mut shown = value.to_string();
+            shown.truncate(60);
+            FlightError::NotAnArray(shown)
+        })?;
+        let mut keys = Vec::with_capacity(items.len());
+        for (index, item) in items.iter().enumerate() {
+            let bad = |problem: String| FlightError::BadKeyframe { index, problem };
+            let number = |name: &str| -> Result<f64, FlightError> {
+                let v = item.get(name).ok_or_else(|| bad(format!("missing \"{name}\"")))?;
+                v.as_f64().filter(|x| x.is_finite()).ok_or_else(|| bad(format!("\"{name}\" must be a finite number")))
+            };
+            let vector = |name: &str| -> Result<Option<DVec3>, FlightError> {
+                let Some(v) = item.get(name) else { return Ok(None) };
+                let parts: Option<Vec<f64>> =
+                    v.as_array().and_then(|a| a.iter().map(|x| x.as_f64().filter(|x| x.is_finite())).collect());
+                match parts.as_deref() {
+                    Some([x, y, z]) => Ok(Some(DVec3::new(*x, *y, *z))),
+                    _ => Err(bad(format!("\"{name}\" must be [x, y, z] of finite numbers"))),
+                }
+            };
+            let t = number("t")?;
+            let pos = vector("pos")?.ok_or_else(|| bad("missing \"pos\"".into()))?;
+            let look_at = vector("look_at")?.ok_or_else(|| bad("missing \"look_at\"".into()))?;
+            if let Some(previous) = keys.last().map(|k: &Keyframe| k.t)
+                && t <= previous
+            {
+                return Err(FlightError::TimeNotIncreasing { index, time: t, previous });
+            }
+            keys.push(Keyframe { t, pos, look_at, up: vector("up")? });
+        }
+        Ok(Self { keys })
+    }
+
+    /// The keyframes.
+    #[must_use]
+    pub fn keyframes(&self) -> &[Keyframe] {
+        &self.keys
+    }
+
+    /// Time of the last keyframe, seconds.
+    #[must_use]
+    pub fn duration(&self) -> f64 {
+        self.keys.last().map_or(0.0, |k| k.t)
+    }
+
+    /// The camera at `t` seconds (clamped to the path), linearly
+    /// interpolated.
+    #[must_use]
+    pub fn pose(&self, t: f64) -> Keyframe {
+        let i = self.keys.partition_point(|k| k.t <= t);
+        if i == 0 {
+            return Keyframe { t, ..self.keys[0] };
+        }
+        if i == self.keys.len() {
+            return Keyframe { t, ..self.keys[i - 1] };
+        }
+        let (a, b) = (self.keys[i - 1], self.keys[i]);
+        let s = (t - a.t) / (b.t - a.t);
+        let up = match (a.up, b.up) {
+            (Some(u), Some(v)) => Some(u.lerp(v, s)),
+            (u, v) => u.or(v),
+        };
+        Keyframe { t, pos: a.pos.lerp(b.pos, s), look_at: a.look_at.lerp(b.look_at, s), up }
+    }
+}
+
+/// One rendered frame of a flight.
+#[derive(Clone, Debug)]
+pub struct FlightFrame {
+    /// Flight time, seconds.
+    pub time_s: f64,
+    /// Wall time after the first frame when it was drawn, seconds.
+    pub wall_s: f64,
+    /// The frame's figures (cracks, chunks, jobs).
+    pub figures: Figures,
+    /// Milliseconds the systems' step took (LOD, uploads, selection).
+    pub step_ms: f64,
+}
+
+/// What a flight showed.
+#[derive(Clone, Debug)]
+pub struct FlightReport {
+    /// Every frame.
+    pub frames: Vec<FlightFrame>,
+    /// Milliseconds before the first frame could be drawn complete.
+    pub first_frame_ms: f64,
+    /// The adapter.
+    pub adapter: String,
+}
+
+impl FlightReport {
+    /// The frame with the most crack pixels (the first of equals).
+    #[must_use]
+    pub fn worst_frame(&self) -> Option<(usize, &FlightFrame)> {
+        self.frames
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.figures.crack_pixels.cmp(&b.1.figures.crack_pixels).then(b.0.cmp(&a.0)))
+    }
+
+    /// The report as JSON: per frame time, crack pixels, chunks drawn,
+    /// jobs in flight; and the worst frame.
+    #[must_use]
+    pub fn json(&self) -> serde_json::Value {
+        let frames: Vec<serde_json::Value> = self
+            .frames
+            .iter()
+            .map(|f| {
+                serde_json::json!({
+                    "time_s": f.time_s,
+                    "wall_s": f.wall_s,
+                    "crack_pixels": f.figures.crack_pixels,
+                    "crack_pixels_sphere_rule": f.figures.cracks.sphere_cracks,
+                    "crack_pixels_geometry_rule": f.figures.cracks.geometry_cracks,
+                    "crack_samples": f.figures.cracks.samples,
+                    "chunks": f.figures.frame.chunks,
+                    "triangles": f.figures.frame.triangles,
+                    "stand_ins": f.figures.frame.stand_ins,
+                    "jobs_in_flight": f.figures.frame.jobs_in_flight,
+                    "step_ms": f.step_ms,
+                    "draw_ms": f.figures.draw_ms,
+                    "check_ms": f.figures.check_ms,
+                })
+            })
+            .collect();
+        let worst = self.worst_frame().map(
+            |(i, f)| serde_json::json!({ "frame": i, "time_s": f.time_s, "crack_pixels": f.figures.crack_pixels }),
+        );
+        serde_json::json!({
+            "adapter": self.adapter,
+            "first_frame_ms": self.first_frame_ms,
+            "frame_count": self.frames.len(),
+            "worst_frame": worst,
+            "frames": frames,
+        })
+    }
+}
+
+/// Flies `flight` at `fps` frames per second with `template`'s size, field
+/// of view, background and debug view; writes `DIR/00000.png`, … when
+/// `frames_dir` is given. With a background every frame's cracks are
+/// counted.
+///
+/// # Errors
+/// A keyframe camera that is unusable (NaN direction, inside the planet),
+/// a bad `fps`, read-back or PNG failures.
+pub fn fly(
+    app: &mut PlanetApp,
+    flight: &Flight,
+    template: &Shot,
+    fps: f64,
+    frames_dir: Option<&Path>,
+) -> anyhow::Result<FlightReport> {
+    anyhow::ensure!(fps.is_finite() && fps > 0.0 && fps <= 1000.0, "--fps must be in (0, 1000], got {fps}");
+    let shot_at = |t: f64| {
+        let pose = flight.pose(t);
+        Shot { position: pose.pos, look_at: pose.look_at, up: pose.up, ..template.clone() }
+    };
+    let min_radius = app.min_surface_radius();
+    for key in flight.keyframes() {
+        shot_view(&shot_at(key.t))?;
+        anyhow::ensure!(
+            key.pos.length() > min_radius,
+            "keyframe at {} s is inside the planet ({:.1} m from the centre, solid below {:.1} m)",
+            key.t,
+            key.pos.length(),
+            min_radius
+        );
+    }
+    app.keep_cpu_meshes(template.background.is_some());
+    app.set_view(shot_view(&shot_at(0.0))?);
+    let first_frame_ms = prime(app)?;
+    let count = (flight.duration() * fps).floor() as usize + 1;
+    let mut frames = Vec::with_capacity(count);
+    let start = Instant::now();
+    for k in 0..count {
+        let time_s = k as f64 / fps;
+        // Never earlier than its time; late if drawing and checking are slow.
+        let due = std::time::Duration::from_secs_f64(time_s);
+        if let Some(wait) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+        let shot = shot_at(time_s);
+        let view = shot_view(&shot)?;
+        app.set_view(view);
+        let stepped = Instant::now();
+        app.step();
+        let step_ms = stepped.elapsed().as_secs_f64() * 1e3;
+        let wall_s = start.elapsed().as_secs_f64();
+        let picture = draw_frame(app, &shot, &view)?;
+        if let Some(dir) = frames_dir {
+            write_png(&dir.join(format!("{k:05}.png")), &picture.rgba, picture.size)?;
+        }
+        frames.push(FlightFrame { time_s, wall_s, figures: picture.figures, step_ms });
+    }
+    Ok(FlightReport { frames, first_frame_ms, adapter: app.gpu().adapter_name.clone() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keyframes_parse_interpolate_and_refuse_bad_input() {
+        let flight = Flight::from_json(
+            r#"[{"t": 0, "pos": [0, 0, 10], "look_at": [0, 0, 0]},
+                {"t": 2, "pos": [4, 0, 10], "look_at": [2, 0, 0], "up": [0, 1, 0]}]"#,
+        )
+        .expect("valid");
+        assert_eq!(flight.duration(), 2.0);
+        let mid = flight.pose(0.5);
+        assert_eq!(mid.pos, DVec3::new(1.0, 0.0, 10.0));
+        assert_eq!(mid.look_at, DVec3::new(0.5, 0.0, 0.0));
+        assert_eq!(mid.up, Some(DVec3::Y), "one side's up stands for both");
+        assert_eq!(flight.pose(9.0).pos, DVec3::new(4.0, 0.0, 10.0), "clamped");
+        assert_eq!(flight.pose(-1.0).pos, DVec3::new(0.0, 0.0, 10.0), "clamped");
+        for (text, wants) in [
+            ("{}", "non-empty JSON array"),
+            ("[]", "non-empty JSON array"),
+            ("nope", "not JSON"),
+            (r#"[{"pos": [0,0,1], "look_at": [0,0,0]}]"#, "missing \"t\""),
+            (r#"[{"t": 0, "pos": [0,0], "look_at": [0,0,0]}]"#, "\"pos\" must be"),
+            (r#"[{"t": 0, "pos": [0,0,1]}]"#, "missing \"look_at\""),
+            (
+                r#"[{"t": 1, "pos": [0,0,1], "look_at": [0,0,0]}, {"t": 1, "pos": [0,0,2], "look_at": [0,0,0]}]"#,
+                "not after",
+            ),
+        ] {
+            let error = Flight::from_json(text).expect_err(text).to_string();
+            assert!(error.contains(wants), "{text}: {error}");
+        }
+    }
+}
