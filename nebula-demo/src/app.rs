@@ -733,8 +733,14 @@ fn select_system(
             if let Some(cached) = cache.columns.get_mut(&column) {
                 cached.last_used = frame.0;
             }
-            if let Ok(bounds) = planet.surface_bounds(column) {
-                min_radius = min_radius.min(bounds.min_radius);
+            // The tree's cached bounds; a stand-in the tree merged away asks
+            // the source (noise) once here.
+            let low = tree
+                .node_bounds(column)
+                .map(|b| b.min_radius)
+                .or_else(|| planet.surface_bounds(column).ok().map(|b| b.min_radius));
+            if let Some(low) = low {
+                min_radius = min_radius.min(low);
             }
             (column, chunk_draw(planet, column, &set, *options))
         })
