@@ -792,8 +792,7 @@ fn chunk_draw(
     let max_lod = layout.max_lod();
     let parent_error = match options.morph {
         MorphRule::Own => planet.geometric_error(column.lod),
-        _ if column.lod >= max_lod => f64::INFINITY,
-        _ => layout.voxel_edge(column.lod + 1),
+        _ => layout.merge_error(column.lod),
     };
     let mut skirt_depths = [0.0f32; 4];
     if !options.skirts {

@@ -100,12 +100,31 @@ impl Flight {
             let t = number("t")?;
             let pos = vector("pos")?.ok_or_else(|| bad("missing \"pos\"".into()))?;
             let look_at = vector("look_at")?.ok_or_else(|| bad("missing \"look_at\"".into()))?;
-            if let Some(previous) = keys.last().map(|k: &Keyframe| k.t)
-                && t <= previous
-            {
-                return Err(FlightError::TimeNotIncreasing { index, time: t, previous });
-            }
             keys.push(Keyframe { t, pos, look_at, up: vector("up")? });
+        }
+        Self::from_keyframes(keys)
+    }
+
+    /// A flight from keyframes made in code, checked as a file's would be.
+    ///
+    /// # Errors
+    /// [`FlightError`] for no keyframes, times that do not increase, or
+    /// non-finite values.
+    pub fn from_keyframes(keys: Vec<Keyframe>) -> Result<Self, FlightError> {
+        if keys.is_empty() {
+            return Err(FlightError::NotAnArray("[]".into()));
+        }
+        for (index, key) in keys.iter().enumerate() {
+            let finite = key.t.is_finite()
+                && key.pos.is_finite()
+                && key.look_at.is_finite()
+                && key.up.is_none_or(|u| u.is_finite());
+            if !finite {
+                return Err(FlightError::BadKeyframe { index, problem: "a value is not finite".into() });
+            }
+            if index > 0 && key.t <= keys[index - 1].t {
+                return Err(FlightError::TimeNotIncreasing { index, time: key.t, previous: keys[index - 1].t });
+            }
         }
         Ok(Self { keys })
     }

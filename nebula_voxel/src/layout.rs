@@ -146,6 +146,14 @@ impl ChunkLayout {
         self.sphere.layer_height() * (self.voxel_span(lod) as f64)
     }
 
+    /// The error a chunk at `lod` geomorphs towards: the voxel edge of the
+    /// LOD it would merge into. +∞ at the coarsest LOD, which has no parent
+    /// and never morphs.
+    #[must_use]
+    pub fn merge_error(&self, lod: u8) -> f64 {
+        if lod >= self.max_lod { f64::INFINITY } else { self.voxel_edge(lod + 1) }
+    }
+
     /// Voxel columns along each face edge at `lod`.
     #[must_use]
     pub fn voxels_per_edge(&self, lod: u8) -> u32 {

@@ -38,19 +38,13 @@ fn meshes(planet: &ProceduralPlanet, column: ChunkColumn) -> Vec<ChunkMesh> {
         .collect()
 }
 
-/// The parent's error (what its own μ follows): its parent's voxel edge.
-fn parent_error(planet: &ProceduralPlanet, lod: u8) -> f64 {
-    let layout = planet.layout();
-    if lod >= layout.max_lod() { f64::INFINITY } else { layout.voxel_edge(lod + 1) }
-}
-
 /// The largest screen jump, in pixels, between the children drawn at
 /// `eye` and the parent drawn at `eye`.
 fn pop_px(planet: &ProceduralPlanet, case: &Case, eye: DVec3, k: f64, morph: bool) -> f64 {
     let layout = planet.layout();
     let frame = FrameDraw::new(eye, k, 1.0, morph);
-    let child_draw = ChunkDraw { parent_error: parent_error(planet, case.parent.lod - 1), skirt_depths: [0.0; 4] };
-    let parent_draw = ChunkDraw { parent_error: parent_error(planet, case.parent.lod), skirt_depths: [0.0; 4] };
+    let child_draw = ChunkDraw { parent_error: layout.merge_error(case.parent.lod - 1), skirt_depths: [0.0; 4] };
+    let parent_draw = ChunkDraw { parent_error: layout.merge_error(case.parent.lod), skirt_depths: [0.0; 4] };
     let sphere = layout.sphere();
     let parent_span = layout.voxel_span(case.parent.lod);
     let mut worst = 0.0_f64;

@@ -13,7 +13,7 @@
 //! unless `NEBULA_REQUIRE_ADAPTER=1` (as in CI), where they fail.
 
 use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp};
-use nebula_demo::flight::{Flight, FlightReport, fly};
+use nebula_demo::flight::{Flight, FlightReport, Keyframe, fly};
 use nebula_demo::gpu::DebugView;
 use nebula_demo::headless::{Picture, Shot, headless_gpu, render_app, report_json, shot_view, write_png};
 use nebula_demo::planet_settings;
@@ -173,18 +173,23 @@ fn small_planet_settled_views_have_no_cracks() {
     check("straight-down", &settings, &shot(eye, DVec3::ZERO, 60.0), 0.99);
 }
 
+/// A 20 km planet (LODs 0..=9), 800 m over a cube corner, looking at the
+/// horizon: near blocks and far hills, many LOD seams in one picture.
+fn low_over_a_corner() -> (PlanetSettings, Shot) {
+    let settings = planet_settings(7, 20_000.0, 1.5);
+    let corner = DVec3::ONE.normalize();
+    let eye = corner * (20_000.0 + 800.0);
+    let target = (corner + DVec3::new(0.25, -0.1, -0.1)).normalize() * 20_000.0;
+    (settings, shot(eye, target, 60.0))
+}
+
 #[test]
 fn low_over_a_cube_corner_spans_many_lods() {
     if !adapter_or_skip("corner") {
         return;
     }
-    // A 20 km planet (LODs 0..=9), 800 m over the corner, looking at the
-    // horizon: near blocks and far hills in one picture.
-    let settings = planet_settings(7, 20_000.0, 1.5);
-    let corner = DVec3::ONE.normalize();
-    let eye = corner * (20_000.0 + 800.0);
-    let target = (corner + DVec3::new(0.25, -0.1, -0.1)).normalize() * 20_000.0;
-    let picture = check("low-corner", &settings, &shot(eye, target, 60.0), 0.1);
+    let (settings, view) = low_over_a_corner();
+    let picture = check("low-corner", &settings, &view, 0.1);
     let lods = picture.figures.frame.lod_histogram.iter().filter(|n| **n > 0).count();
     assert!(lods >= 4, "LOD spread {lods} < 4: {:?}", picture.figures.frame.lod_histogram);
 }
@@ -212,11 +217,8 @@ fn earth_random_poses_near_the_ground_have_no_cracks_while_streaming() {
         let pitch = rng.range(-2.0, 75.0);
         let heading = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
         let (eye, look_at) = pose(&settings, dir, altitude, heading, pitch);
-        let text = format!(
-            r#"[{{"t": 0, "pos": [{}, {}, {}], "look_at": [{}, {}, {}]}}, {{"t": 0.5, "pos": [{}, {}, {}], "look_at": [{}, {}, {}]}}]"#,
-            eye.x, eye.y, eye.z, look_at.x, look_at.y, look_at.z, eye.x, eye.y, eye.z, look_at.x, look_at.y, look_at.z
-        );
-        let flight = Flight::from_json(&text).expect("flight");
+        let hold = |t| Keyframe { t, pos: eye, look_at, up: None };
+        let flight = Flight::from_keyframes(vec![hold(0.0), hold(0.5)]).expect("flight");
         println!("pose {n}: {altitude:.0} m up, {pitch:.0}° down, at {dir:?}");
         check_flight(&format!("earth-pose-{n}"), &settings, &flight, 6.0);
     }
@@ -244,13 +246,10 @@ fn ground_flight(
         let angle = speed * t / radius;
         let dir = up * angle.cos() + heading * angle.sin();
         let ahead = (heading * angle.cos() - up * angle.sin()).normalize();
-        let (eye, look_at) = pose(settings, dir, altitude, ahead, pitch);
-        keys.push(format!(
-            r#"{{"t": {t}, "pos": [{}, {}, {}], "look_at": [{}, {}, {}]}}"#,
-            eye.x, eye.y, eye.z, look_at.x, look_at.y, look_at.z
-        ));
+        let (pos, look_at) = pose(settings, dir, altitude, ahead, pitch);
+        keys.push(Keyframe { t, pos, look_at, up: None });
     }
-    Flight::from_json(&format!("[{}]", keys.join(","))).expect("flight")
+    Flight::from_keyframes(keys).expect("flight")
 }
 
 #[test]
@@ -334,11 +333,7 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
     // the finer side) the open slits face away and show no background; the
     // CPU oracle's seams-off control (`seams.rs`) casts from other places
     // and does see them.
-    let settings = planet_settings(7, 20_000.0, 1.5);
-    let corner = DVec3::ONE.normalize();
-    let eye = corner * (20_000.0 + 800.0);
-    let target = (corner + DVec3::new(0.25, -0.1, -0.1)).normalize() * 20_000.0;
-    let view = shot(eye, target, 60.0);
+    let (settings, view) = low_over_a_corner();
     let off = settled("skirts-off", &settings, &view, DrawOptions { skirts: false, ..DrawOptions::default() });
     println!("skirts off: {:?} crack pixels ({:?})", off.figures.crack_pixels, off.figures.cracks);
 
