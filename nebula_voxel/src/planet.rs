@@ -66,6 +66,9 @@
 //! `geometric_error_bounds_the_voxel_tops` checks it against the voxels of
 //! places unrelated to the samples.
 
+use std::collections::{HashMap, VecDeque};
+use std::sync::{Arc, Mutex};
+
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 use noise::{Fbm, MultiFractal, NoiseFn, Perlin, RidgedMulti};
 
@@ -145,6 +148,64 @@ pub struct ProceduralPlanet {
     noise_scale: f64,
     /// S: steepest height change per lattice step, layers per cell.
     max_slope: f64,
+    /// Heights of recently filled chunk columns, shared by their radial
+    /// layers.
+    heights: HeightCache,
+}
+
+/// Chunk columns whose heights [`HeightCache`] keeps: about 2.4 MB. A
+/// streaming renderer asks for a column's layers one after another (they
+/// share a priority), so a few hundred columns catch nearly every repeat.
+const HEIGHT_CACHE_COLUMNS: usize = 256;
+
+/// The heights (in layers) of a chunk column's padded voxel columns, by
+/// column, for the chunks of its other radial layers.
+///
+/// Why: a chunk's cost is almost all noise — 34 × 34 columns of about 40
+/// Perlin octaves each — and the voxels of a column do not depend on the
+/// layer. Around a streaming view a surface column holds 2–3 chunks (the
+/// surface bounds allow for slope), so the heights are computed once, not
+/// once per layer. A memo of a pure function: the voxels are the same
+/// with or without it.
+#[derive(Default)]
+struct HeightCache {
+    entries: Mutex<HeightEntries>,
+}
+
+/// The cached heights by column, and the columns oldest first.
+type HeightEntries = (HashMap<ChunkColumn, Arc<[f64]>>, VecDeque<ChunkColumn>);
+
+impl HeightCache {
+    fn get(&self, column: ChunkColumn) -> Option<Arc<[f64]>> {
+        self.entries.lock().ok()?.0.get(&column).cloned()
+    }
+
+    fn insert(&self, column: ChunkColumn, heights: Arc<[f64]>) {
+        let Ok(mut entries) = self.entries.lock() else { return };
+        let (map, order) = &mut *entries;
+        if map.insert(column, heights).is_none() {
+            order.push_back(column);
+        }
+        while order.len() > HEIGHT_CACHE_COLUMNS {
+            if let Some(oldest) = order.pop_front() {
+                map.remove(&oldest);
+            }
+        }
+    }
+}
+
+impl Clone for HeightCache {
+    /// A clone starts empty: the cache is not part of the planet's value.
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for HeightCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let columns = self.entries.lock().map_or(0, |e| e.0.len());
+        f.debug_struct("HeightCache").field("columns", &columns).finish()
+    }
 }
 
 impl ProceduralPlanet {
@@ -225,6 +286,7 @@ impl ProceduralPlanet {
             ridges,
             layer_height,
             max_slope: 0.0,
+            heights: HeightCache::default(),
         };
         planet.max_slope = planet.measure_max_slope();
         Ok(planet)
@@ -288,6 +350,22 @@ impl ProceduralPlanet {
             face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
         let span = self.layout.voxel_span(lod) as f64;
         self.height_layers(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
+    }
+
+    /// The heights of `column`'s padded voxel columns (x fastest, as
+    /// `PaddedChunkShape` orders x and z), from the cache or computed.
+    fn padded_heights(&self, column: ChunkColumn) -> Arc<[f64]> {
+        if let Some(heights) = self.heights.get(column) {
+            return heights;
+        }
+        let size = i64::from(CHUNK_SIZE);
+        let (base_i, base_j) = (i64::from(column.x) * size - 1, i64::from(column.y) * size - 1);
+        let padded = i64::from(PADDED_CHUNK_SIZE);
+        let heights: Arc<[f64]> = (0..padded * padded)
+            .map(|n| self.column_height(column.face, column.lod, base_i + n % padded, base_j + n / padded))
+            .collect();
+        self.heights.insert(column, heights.clone());
+        heights
     }
 
     /// Voxel `h` (in voxels of `lod`) of a column of height `height` layers:
@@ -361,13 +439,12 @@ impl VoxelSource for ProceduralPlanet {
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
         self.layout.check_key(key)?;
         out.set_key(key);
-        let size = i64::from(CHUNK_SIZE);
-        let (base_i, base_j, base_h) =
-            (i64::from(key.x) * size - 1, i64::from(key.y) * size - 1, i64::from(key.layer) * size - 1);
+        let base_h = i64::from(key.layer) * i64::from(CHUNK_SIZE) - 1;
+        let heights = self.padded_heights(key.column());
         let voxels = out.as_mut_slice();
         for z in 0..PADDED_CHUNK_SIZE {
             for x in 0..PADDED_CHUNK_SIZE {
-                let height = self.column_height(key.face, key.lod, base_i + i64::from(x), base_j + i64::from(z));
+                let height = heights[(z * PADDED_CHUNK_SIZE + x) as usize];
                 for y in 0..PADDED_CHUNK_SIZE {
                     voxels[PaddedChunkShape::linearize([x, y, z]) as usize] =
                         self.classify(height, base_h + i64::from(y), key.lod);

@@ -238,6 +238,36 @@ fn a_crater_across_a_face_edge_shows_at_coarse_lods_and_replays() {
     assert!(edited.fill_sphere(center, 1e6, Voxel::AIR).is_err());
 }
 
+/// The height cache is invisible: chunks filled through a warm cache (the
+/// column's other layers, the same x and y at another LOD and face just
+/// before, more columns than the cache holds, evicted columns again) equal
+/// chunks from a cold clone of the planet.
+#[test]
+fn cached_heights_give_the_same_voxels() {
+    let warm = ProceduralPlanet::new(PlanetSettings::small(3)).unwrap();
+    let columns: Vec<ChunkColumn> = (0..320u32)
+        .map(|n| {
+            let lod = (n / 2 % 4) as u8;
+            let per_edge = warm.layout().chunks_per_edge(lod + 1);
+            // Pairs share x and y at two LODs (and faces, every third pair).
+            let (x, y) = ((n / 2 * 7) % per_edge, (n / 2 * 3) % per_edge);
+            ChunkColumn { face: CubeFace::ALL[(n / 6 + n % 2) as usize % 6], lod: lod + (n % 2) as u8, x, y }
+        })
+        .collect();
+    let mut checked = 0;
+    for column in columns.iter().chain(&columns[..16]) {
+        for layer in warm.surface_chunk_layers(*column).unwrap() {
+            let key = column.chunk(layer);
+            let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
+            warm.fill_chunk(key, &mut cached).unwrap();
+            warm.clone().fill_chunk(key, &mut cold).unwrap();
+            assert_eq!(cached, cold, "{key:?}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 336, "only {checked} chunks checked");
+}
+
 fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }
