@@ -3,10 +3,12 @@
 //! parallel with rayon (same run, so the ratio is meaningful on a noisy
 //! machine). Run: `cargo bench -p nebula_voxel`.
 //!
-//! Measured 2026-11-22 on the 2-core dev machine (Earth planet with hills):
-//! LOD 0 chunk 1.14 ms (28.7 M voxels/s), LOD 8 chunk 3.06 ms (10.7 M
-//! voxels/s); 64 LOD-2 chunks 91.4 ms sequential vs. 48.2 ms with rayon
-//! (1.90× on 2 threads, 43.5 M voxels/s).
+//! Measured 2026-11-22 on the 2-core dev machine (Earth planet with hills),
+//! cold (no cached heights): LOD 0 chunk 1.35 ms, LOD 8 chunk 1.35 ms
+//! (24.3 M voxels/s; with `noise::Perlin` they were 1.38 and 3.10 ms: its
+//! gradient `match` mispredicts where samples are far apart); both surface
+//! layers of a column 1.43 / 1.49 ms (heights computed once); 64 LOD-2
+//! chunks on rayon 1.7× faster than sequentially on 2 threads.
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};

@@ -18,8 +18,11 @@
 //! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
 //!   voxels, seen by coarse LODs through the same far-corner rule, so
 //!   nothing is lost when chunks are regenerated.
-//! - **Noise**: the `noise` crate's Perlin fBm and ridged multifractal,
-//!   evaluated on the sphere so terrain is seamless across faces.
+//! - **Noise**: the `noise` crate's fBm and ridged multifractal, evaluated
+//!   on the sphere so terrain is seamless across faces, over our own
+//!   branch-free Perlin kernel that returns the `noise` crate's values
+//!   (2.3× faster where samples are far apart; see `perlin.rs`). Heights
+//!   are computed once per chunk column and shared by its radial layers.
 //!
 //! Generation speed: `cargo bench -p nebula_voxel` (figures in the bench
 //! file's header).
@@ -52,6 +55,7 @@ mod chunk;
 mod edits;
 mod error;
 mod layout;
+mod perlin;
 mod planet;
 mod source;
 mod voxel;

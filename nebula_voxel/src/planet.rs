@@ -70,7 +70,9 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
-use noise::{Fbm, MultiFractal, NoiseFn, Perlin, RidgedMulti};
+use noise::{Fbm, MultiFractal, NoiseFn, RidgedMulti};
+
+use crate::perlin::BranchlessPerlin as Perlin;
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, MAX_LOD, PADDED_CHUNK_SIZE, PaddedChunkShape,
