@@ -131,12 +131,7 @@ mod tests {
     #[test]
     fn matches_the_noise_crate() {
         let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::planet::unit_random(&mut state);
         for seed in [0, 11, 12, 13, 0xdead_beef] {
             let (ours, theirs) = (BranchlessPerlin::new(seed), Perlin::new(seed));
             for n in 0..200_000 {
