@@ -527,6 +527,7 @@ impl PlanetApp {
         figures.times = *self.world.resource::<StageTimes>();
         figures.jobs_in_flight = self.jobs_in_flight();
         figures.gpu_bytes = cache.gpu_bytes();
+        figures.gpu_buffer_bytes = self.gpu().mesh_buffer_bytes();
         figures.chunks_held = cache.chunks();
         figures
     }
@@ -575,8 +576,10 @@ pub struct FrameFigures {
     pub times: StageTimes,
     /// Meshing jobs queued or running.
     pub jobs_in_flight: usize,
-    /// GPU buffer bytes held by chunk meshes.
+    /// Bytes of the chunk meshes held on the GPU.
     pub gpu_bytes: u64,
+    /// Bytes of the GPU buffers holding them (arena pages, used or not).
+    pub gpu_buffer_bytes: u64,
     /// Chunk meshes held.
     pub chunks_held: usize,
 }
@@ -618,7 +621,7 @@ fn store(cache: &mut MeshCache, planet: &ProceduralPlanet, gpu: &Gpu, done: Mesh
         ^ key.y.wrapping_mul(19_349_663)
         ^ (key.layer as u32).wrapping_mul(83_492_791)
         ^ ((key.face as u32) << 3);
-    let gpu_mesh = gpu.upload(&mesh, key.lod, id, "chunk");
+    let gpu_mesh = gpu.upload(&mesh, key.lod, id);
     let loaded = LoadedChunk {
         gpu: gpu_mesh,
         surface_triangles: mesh.surface_indices / 3,

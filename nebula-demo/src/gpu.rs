@@ -8,7 +8,7 @@ use glam::{DVec3, Mat4, Vec3};
 use nebula_meshing::{ChunkDraw, RenderVertex, split_high_low};
 
 use crate::app::{CpuMesh, drawn_ranges};
-use wgpu::util::DeviceExt;
+use crate::arena::{MeshArena, Slot};
 
 /// The colour format of the offscreen target: plain UNORM, so the clear
 /// colour is stored exactly (the shader encodes sRGB itself).
@@ -71,8 +71,8 @@ pub enum DebugView {
 
 /// One chunk's mesh on the GPU.
 pub struct GpuMesh {
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
+    /// Where its vertices and indices live (`None`: empty, never drawn).
+    slot: Option<Slot>,
     surface_indices: usize,
     skirt_ranges: [std::ops::Range<usize>; 4],
     /// The chunk's LOD.
@@ -128,6 +128,8 @@ pub struct Gpu {
     chunk_group: wgpu::BindGroup,
     chunk_capacity: u64,
     depth: Option<(wgpu::Texture, wgpu::TextureView, (u32, u32))>,
+    /// The chunk meshes' buffers.
+    arena: MeshArena,
 }
 
 impl Gpu {
@@ -275,6 +277,7 @@ impl Gpu {
             chunk_group,
             chunk_capacity: 256,
             depth: None,
+            arena: MeshArena::default(),
         })
     }
 
@@ -287,34 +290,18 @@ impl Gpu {
         Some(config)
     }
 
-    /// Uploads a chunk mesh in GPU form; `key_id` colours the chunk view.
+    /// Uploads a chunk mesh into the mesh arena; `key_id` colours the chunk
+    /// view.
     #[must_use]
-    pub fn upload(&self, mesh: &CpuMesh, lod: u8, key_id: u32, label: &str) -> GpuMesh {
-        let (vertices, indices) = (&mesh.vertices, &mesh.indices);
-        // An empty chunk still gets (tiny) buffers; it is never drawn.
-        let zero_vertex = [RenderVertex::zeroed()];
-        let vertex_bytes: &[u8] =
-            if vertices.is_empty() { bytemuck::cast_slice(&zero_vertex) } else { bytemuck::cast_slice(vertices) };
-        let index_bytes: &[u8] =
-            if indices.is_empty() { bytemuck::cast_slice(&[0u32; 3]) } else { bytemuck::cast_slice(indices) };
-        let vertex_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: vertex_bytes,
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let index_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: index_bytes,
-            usage: wgpu::BufferUsages::INDEX,
-        });
+    pub fn upload(&self, mesh: &CpuMesh, lod: u8, key_id: u32) -> GpuMesh {
+        let slot = self.arena.upload(&self.device, &self.queue, &mesh.vertices, &mesh.indices);
         GpuMesh {
-            vertices: vertex_buffer,
-            indices: index_buffer,
+            slot,
             surface_indices: mesh.surface_indices,
             skirt_ranges: mesh.skirt_ranges.clone(),
             lod,
             id: key_id % 4096,
-            bytes: (vertex_bytes.len() + index_bytes.len()) as u64,
+            bytes: (size_of_val(mesh.vertices.as_slice()) + size_of_val(mesh.indices.as_slice())) as u64,
         }
     }
 
@@ -363,6 +350,7 @@ impl Gpu {
         }
         let bg = frame.background.map(|c| f64::from(c) / 255.0);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let pages = self.arena.lock();
         {
             let depth_view = &self.depth.as_ref().map(|d| &d.1);
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -391,21 +379,35 @@ impl Gpu {
             };
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
+            let mut bound = None;
             for (n, (mesh, draw)) in meshes.iter().enumerate() {
+                let Some(slot) = &mesh.slot else { continue };
                 // The surface and only the skirts lowered this frame.
                 let ranges = drawn_ranges(mesh.surface_indices, &mesh.skirt_ranges, draw);
                 if ranges.iter().all(std::ops::Range::is_empty) {
                     continue;
                 }
                 pass.set_bind_group(1, &self.chunk_group, &[(n as u64 * CHUNK_UNIFORM_STRIDE) as u32]);
-                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                if bound != Some(slot.page) {
+                    let page = pages.page(slot.page);
+                    pass.set_vertex_buffer(0, page.vertices.slice(..));
+                    pass.set_index_buffer(page.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    bound = Some(slot.page);
+                }
+                let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
                 for range in ranges.into_iter().filter(|r| !r.is_empty()) {
-                    pass.draw_indexed(range.start as u32..range.end as u32, 0, 0..1);
+                    pass.draw_indexed(first + range.start as u32..first + range.end as u32, base, 0..1);
                 }
             }
         }
+        drop(pages);
         self.queue.submit([encoder.finish()]);
+    }
+
+    /// Bytes of GPU buffers held for chunk meshes (pages, used or not).
+    #[must_use]
+    pub fn mesh_buffer_bytes(&self) -> u64 {
+        self.arena.lock().capacity_bytes()
     }
 
     fn ensure_depth(&mut self, size: (u32, u32)) {

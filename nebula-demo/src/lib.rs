@@ -21,6 +21,7 @@
 //! ```
 
 pub mod app;
+pub mod arena;
 pub mod crack;
 pub mod flight;
 pub mod gpu;

@@ -353,3 +353,43 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
     let covered = on.rgba.chunks_exact(4).filter(|p| p[..3] != SENTINEL).count();
     assert!(count.cracks <= covered + 16, "a blank frame has more cracks than the real frame drew pixels");
 }
+
+/// The mesh arena packs meshes into a page until it is full, opens a new
+/// page then, hands freed space (a dropped slot) to the next mesh, and
+/// never lets two live meshes overlap.
+#[test]
+fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
+    use nebula_demo::arena::{MeshArena, PAGE_VERTICES};
+    use nebula_meshing::RenderVertex;
+    if !adapter_or_skip("arena") {
+        return;
+    }
+    let gpu = headless_gpu().expect("adapter");
+    let arena = MeshArena::default();
+    let vertex = RenderVertex {
+        position_high: [0.0; 3],
+        position_low: [0.0; 3],
+        morph_offset: [0.0; 3],
+        normal: [0; 2],
+        packed: 0,
+    };
+    let quarter = vec![vertex; PAGE_VERTICES as usize / 4];
+    let upload = || arena.upload(&gpu.device, &gpu.queue, &quarter, &[0, 1, 2]).expect("uploaded");
+    assert!(arena.upload(&gpu.device, &gpu.queue, &[], &[]).is_none(), "an empty mesh takes no space");
+    let mut slots: Vec<_> = (0..4).map(|_| upload()).collect();
+    assert!(slots.iter().all(|s| s.page == 0), "four quarters fill the first page");
+    let mut starts: Vec<u32> = slots.iter().map(|s| s.first_vertex()).collect();
+    starts.sort_unstable();
+    assert!(starts.windows(2).all(|w| w[1] - w[0] >= PAGE_VERTICES / 4), "overlap: {starts:?}");
+    let fifth = upload();
+    assert_eq!(fifth.page, 1, "a full page opens a new one");
+    let freed = slots.remove(2).first_vertex();
+    let again = upload();
+    assert_eq!((again.page, again.first_vertex()), (0, freed), "freed space is reused");
+    assert_eq!(arena.lock().capacity_bytes(), 2 * arena_page_bytes());
+}
+
+fn arena_page_bytes() -> u64 {
+    use nebula_demo::arena::{PAGE_INDICES, PAGE_VERTICES};
+    u64::from(PAGE_VERTICES) * size_of::<nebula_meshing::RenderVertex>() as u64 + u64::from(PAGE_INDICES) * 4
+}
