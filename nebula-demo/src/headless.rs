@@ -161,13 +161,27 @@ pub fn shot_view(shot: &Shot) -> anyhow::Result<View> {
 pub fn prime(app: &mut PlanetApp) -> anyhow::Result<f64> {
     let started = Instant::now();
     loop {
+        let step_started = Instant::now();
         app.step();
         let list = app.world.resource::<DrawList>();
         if list.holes == 0 && list.max_stand_in_levels <= MAX_FIRST_FRAME_LEVELS {
             return Ok(started.elapsed().as_secs_f64() * 1e3);
         }
         anyhow::ensure!(started.elapsed().as_secs() < 600, "no complete frame in 10 minutes");
-        std::thread::sleep(std::time::Duration::from_millis(1));
+        pace(step_started);
+    }
+}
+
+/// Frames are stepped at most [`FRAME_RATE`] a second, as a game would:
+/// stepping as fast as possible re-runs the selection hundreds of times a
+/// second and takes CPU from the meshing workers.
+pub const FRAME_RATE: f64 = 60.0;
+
+/// Sleeps out the rest of a frame that started at `started`.
+fn pace(started: Instant) {
+    let frame = std::time::Duration::from_secs_f64(1.0 / FRAME_RATE);
+    if let Some(rest) = frame.checked_sub(started.elapsed()) {
+        std::thread::sleep(rest);
     }
 }
 
@@ -191,13 +205,14 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     let first_frame_ms = prime(app)?;
     let mut frames = 0;
     loop {
+        let step_started = Instant::now();
         app.step();
         frames += 1;
         if frames >= shot.frames && app.settled() {
             break;
         }
         anyhow::ensure!(started.elapsed().as_secs() < 600, "meshing did not settle in 10 minutes");
-        std::thread::sleep(std::time::Duration::from_millis(1));
+        pace(step_started);
     }
     let settled_ms = started.elapsed().as_secs_f64() * 1e3;
     let mut picture = draw_frame(app, shot, &view)?;
