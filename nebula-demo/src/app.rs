@@ -33,7 +33,7 @@
 
 use std::collections::{BinaryHeap, HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -84,6 +84,12 @@ pub struct CpuMesh {
 }
 
 impl CpuMesh {
+    /// Bytes of its vertices and indices.
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        (size_of_val(self.vertices.as_slice()) + size_of_val(self.indices.as_slice())) as u64
+    }
+
     /// The index ranges drawn with `draw`: the surface and the skirts of
     /// the sides lowered.
     #[must_use]
@@ -126,6 +132,12 @@ pub struct LoadedChunk {
     pub cpu: Option<CpuMesh>,
 }
 
+/// Meshes uploaded per frame at most: a long frame (or a burst of finished
+/// jobs) must not turn into one huge upload. Also the most results that
+/// wait for collection: workers block past it, so finished meshes cannot
+/// pile up in memory when frames are slow.
+pub const MAX_UPLOADS_PER_FRAME: usize = 512;
+
 /// Stand-ins for a leaf not meshed yet are meshed at every this many LODs
 /// above it (nearer ones are drawn if they happen to be meshed).
 pub const STAND_IN_LEVEL_STEP: u8 = 1;
@@ -148,6 +160,11 @@ impl CachedColumn {
     fn ready(&self) -> bool {
         self.chunks.len() == self.layers.len()
     }
+
+    /// Bytes of mesh data its chunks hold (GPU and CPU copies).
+    fn bytes(&self) -> u64 {
+        self.chunks.values().map(|c| c.gpu.bytes + c.cpu.as_ref().map_or(0, CpuMesh::bytes)).sum()
+    }
 }
 
 /// Every chunk mesh on the GPU, by column.
@@ -162,6 +179,11 @@ pub struct MeshCache {
     /// longest ago (not drawn or wanted this frame) are freed first. What
     /// the frame draws is always kept.
     pub max_chunks: usize,
+    /// The same for bytes of mesh data held (GPU, plus the CPU copies when
+    /// kept). Chunks differ a lot in size, so a chunk count alone does not
+    /// bound memory (measured: flying 15–150 m over Earth at 600–3,000 m/s
+    /// with the crack oracle's CPU copies, the cache stays at ≤ 537 MB).
+    pub max_bytes: u64,
 }
 
 impl MeshCache {
@@ -179,6 +201,18 @@ impl MeshCache {
     #[must_use]
     pub fn chunks(&self) -> usize {
         self.columns.values().map(|c| c.chunks.len()).sum()
+    }
+
+    /// The default [`MeshCache::max_bytes`]: 512 MiB.
+    #[must_use]
+    pub const fn default_max_bytes() -> u64 {
+        512 << 20
+    }
+
+    /// Bytes of mesh data held (GPU and CPU copies).
+    #[must_use]
+    pub fn held_bytes(&self) -> u64 {
+        self.columns.values().map(CachedColumn::bytes).sum()
     }
 }
 
@@ -229,7 +263,9 @@ pub struct Meshing {
     state: Arc<Mutex<JobState>>,
     workers: Arc<AtomicUsize>,
     max_workers: usize,
-    sender: Sender<MeshResult>,
+    /// Bounded: a worker waits once [`MAX_UPLOADS_PER_FRAME`] results are
+    /// waiting, so slow frames never pile meshes up in memory.
+    sender: SyncSender<MeshResult>,
     receiver: Mutex<Receiver<MeshResult>>,
     /// Which seam passes run (the draw-time skirts must stay on).
     pub options: MeshOptions,
@@ -340,7 +376,7 @@ impl PlanetApp {
     pub fn new(planet: ProceduralPlanet, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
         let tree = LodTree::new(&planet, settings)?;
         let mut world = World::new();
-        let (sender, receiver) = channel();
+        let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
         world.insert_resource(Planet(Arc::new(planet)));
         world.insert_resource(Lod { tree });
         world.insert_resource(view);
@@ -361,6 +397,7 @@ impl PlanetApp {
             keep_cpu: false,
             free_after_frames: 300,
             max_chunks: 12_000,
+            max_bytes: MeshCache::default_max_bytes(),
             ..MeshCache::default()
         });
         world.insert_resource(DrawList::default());
@@ -527,6 +564,7 @@ impl PlanetApp {
         figures.times = *self.world.resource::<StageTimes>();
         figures.jobs_in_flight = self.jobs_in_flight();
         figures.gpu_bytes = cache.gpu_bytes();
+        figures.held_bytes = cache.held_bytes();
         figures.gpu_buffer_bytes = self.gpu().mesh_buffer_bytes();
         figures.chunks_held = cache.chunks();
         figures
@@ -580,6 +618,9 @@ pub struct FrameFigures {
     pub gpu_bytes: u64,
     /// Bytes of the GPU buffers holding them (arena pages, used or not).
     pub gpu_buffer_bytes: u64,
+    /// Bytes of mesh data held, GPU and CPU copies (what
+    /// [`MeshCache::max_bytes`] bounds).
+    pub held_bytes: u64,
     /// Chunk meshes held.
     pub chunks_held: usize,
 }
@@ -648,7 +689,6 @@ fn collect_meshes_system(
     // At most this many uploads a frame: a long frame (or a burst of
     // finished jobs) must not turn into one huge upload; the rest waits in
     // the channel for the next frame.
-    const MAX_UPLOADS_PER_FRAME: usize = 512;
     let results: Vec<MeshResult> =
         meshing.receiver.lock().map(|r| r.try_iter().take(MAX_UPLOADS_PER_FRAME).collect()).unwrap_or_default();
     if let Ok(mut state) = meshing.state.lock() {
@@ -890,18 +930,20 @@ fn spawn_workers(meshing: &Meshing, planet: &Arc<ProceduralPlanet>) {
     }
 }
 
-/// Frees columns out of use for a while, and the least recently used ones
-/// past the cache's budget (never the face roots, never what this frame
-/// draws or wants); every 10 frames.
+/// Frees columns out of use for a while (every 10 frames), and every frame
+/// the least recently used ones past the cache's chunk or byte budget
+/// (never the face roots, never what this frame draws or wants).
 fn free_system(lod: Res<Lod>, frame: Res<FrameCount>, mut cache: ResMut<MeshCache>) {
-    if !frame.0.is_multiple_of(10) {
-        return;
-    }
     let max_lod = lod.tree.max_lod();
-    let limit = cache.free_after_frames;
-    cache.columns.retain(|column, cached| column.lod == max_lod || frame.0.saturating_sub(cached.last_used) <= limit);
-    let mut held = cache.chunks();
-    if held <= cache.max_chunks {
+    if frame.0.is_multiple_of(10) {
+        let limit = cache.free_after_frames;
+        cache
+            .columns
+            .retain(|column, cached| column.lod == max_lod || frame.0.saturating_sub(cached.last_used) <= limit);
+    }
+    let (mut chunks, mut bytes) = (cache.chunks(), cache.held_bytes());
+    let over = |chunks: usize, bytes: u64| chunks > cache.max_chunks || bytes > cache.max_bytes;
+    if !over(chunks, bytes) {
         return;
     }
     let mut old: Vec<(u64, ChunkColumn)> = cache
@@ -911,13 +953,19 @@ fn free_system(lod: Res<Lod>, frame: Res<FrameCount>, mut cache: ResMut<MeshCach
         .map(|(column, cached)| (cached.last_used, *column))
         .collect();
     old.sort_unstable();
+    let mut freed = Vec::new();
     for (_, column) in old {
-        if held <= cache.max_chunks {
+        if !over(chunks, bytes) {
             break;
         }
-        if let Some(cached) = cache.columns.remove(&column) {
-            held -= cached.chunks.len();
+        if let Some(cached) = cache.columns.get(&column) {
+            chunks -= cached.chunks.len();
+            bytes -= cached.bytes();
+            freed.push(column);
         }
+    }
+    for column in freed {
+        cache.columns.remove(&column);
     }
 }
 

@@ -303,6 +303,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "chunks_held": f.chunks_held,
         "gpu_mesh_bytes": f.gpu_bytes,
         "gpu_mesh_buffer_bytes": f.gpu_buffer_bytes,
+        "mesh_bytes_held": f.held_bytes,
         "triangles": f.triangles,
         "skirt_triangles": f.skirt_triangles,
         "skirt_triangles_held": f.skirt_triangles_held,
