@@ -79,7 +79,7 @@ pub struct GpuMesh {
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
-    /// Bytes of GPU memory the buffers hold.
+    /// Bytes of its vertices and indices in the arena.
     pub bytes: u64,
 }
 
@@ -301,7 +301,7 @@ impl Gpu {
             skirt_ranges: mesh.skirt_ranges.clone(),
             lod,
             id: key_id % 4096,
-            bytes: (size_of_val(mesh.vertices.as_slice()) + size_of_val(mesh.indices.as_slice())) as u64,
+            bytes: mesh.bytes(),
         }
     }
 
