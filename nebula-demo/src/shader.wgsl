@@ -28,7 +28,7 @@ struct Chunk {
 struct VertexIn {
     @location(0) position_high: vec3<f32>,
     @location(1) position_low: vec3<f32>,
-    @location(2) morph_offset: vec3<f32>,
+    @location(2) target_low: vec3<f32>,
     @location(3) normal: vec2<f32>,
     // low 16 bits: material, high 16 bits: flags (1 = skirt, 2 = constrained,
     // bits 2–3: the side a skirt hangs on).
@@ -71,11 +71,17 @@ fn vs_main(in: VertexIn) -> VertexOut {
     // Vertex − eye from the high and low parts: a function of the vertex's
     // canonical world position and the frame only, never of the chunk, so a
     // vertex shared by two chunks lands on the same clip position in both.
-    var relative = (in.position_high - frame.eye_high.xyz) + (in.position_low - frame.eye_low.xyz);
+    // The high part is the morph target's, shared by every vertex that
+    // collapses onto it, so at μ = 0 they all land on the bit-identical
+    // target (nebula_meshing::RenderVertex).
+    let base = in.position_high - frame.eye_high.xyz;
+    let fine = base + (in.position_low - frame.eye_low.xyz);
+    var relative = fine;
     var mu = 1.0;
     if (frame.params.w > 0.5) {
-        mu = morph_factor(relative);
-        relative = relative + (1.0 - mu) * in.morph_offset;
+        mu = morph_factor(fine);
+        let morph_target = base + (in.target_low - frame.eye_low.xyz);
+        relative = morph_target + mu * (fine - morph_target);
     }
     let flags = in.packed >> 16u;
     if ((flags & 1u) != 0u) {

@@ -1,12 +1,15 @@
 //! The GPU form of a chunk mesh, and the vertex shader's twin on the CPU.
 //!
 //! ```text
-//!   world position p (f64, canonical)  ──►  high = f32(p), low = f32(p − high)
-//!   eye e (f64, per frame)             ──►  high = f32(e), low = f32(e − high)
+//!   world position p, morph target t (f64, canonical)
+//!        ──►  high = f32(t), low = f32(p − high), target_low = f32(t − high)
+//!   eye e (f64, per frame)  ──►  high = f32(e), low = f32(e − high)
 //!
-//!   on the GPU:  rel = (p.high − e.high) + (p.low − e.low)        (f32)
-//!                rel += (1 − μ(|rel|)) · morph_offset             geomorph
-//!                rel += depth[side] · normalize(centre − rel)     skirt vertices
+//!   on the GPU:  base   = high − e.high                                (f32)
+//!                fine   = base + (low − e.low)
+//!                target = base + (target_low − e.low)
+//!                rel    = target + μ(|fine|) · (fine − target)        geomorph
+//!                rel   += depth[side] · normalize(centre − rel)       skirt vertices
 //! ```
 //!
 //! **Why high + low.** Design rule 6: a vertex shared by two chunks must
@@ -19,6 +22,17 @@
 //! the same numbers gives the same clip position. `p.high − e.high` is exact
 //! when the two are within a factor of 2 (Sterbenz), so precision near the
 //! camera is that of `low`: about 10⁻⁷ m on Earth.
+//!
+//! **Why the high part is the morph target's.** Geomorphing collapses
+//! distinct fine vertices onto one target (all of a parent cell's corners
+//! that round down to the same even lattice point). At μ = 0 those vertices
+//! must land on the bit-identical position too, or the triangles on either
+//! side of the collapsed ones can leave a float-rounding pinhole between
+//! them. A vertex that carried `morph target − position` as an f32 offset
+//! reached the target by a different rounding from each fine vertex (in 71 %
+//! of collapsing groups on Earth terrain, see the tests). Here
+//! the target is a function of the target alone (`high`, `target_low`), and
+//! `target + μ · (fine − target)` is exactly `target` at μ = 0.
 //!
 //! **Why skirt depths at draw time.** A skirt vertex carries the position of
 //! the surface vertex it hangs from and its side; the renderer picks the
@@ -39,9 +53,9 @@ use crate::ChunkMesh;
 ///
 /// | bytes | field | vertex format |
 /// |---|---|---|
-/// | 0–11 | `position_high`: f32 × 3, f32 of the world position | `Float32x3` |
-/// | 12–23 | `position_low`: f32 × 3, the rest (world − high) | `Float32x3` |
-/// | 24–35 | `morph_offset`: f32 × 3, morph target − position | `Float32x3` |
+/// | 0–11 | `position_high`: f32 × 3, f32 of the morph target's world position | `Float32x3` |
+/// | 12–23 | `position_low`: f32 × 3, world position − high | `Float32x3` |
+/// | 24–35 | `target_low`: f32 × 3, morph target − high | `Float32x3` |
 /// | 36–39 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
 /// | 40–43 | `packed`: material (low 16 bits), flags (high 16 bits) | `Uint32` |
 ///
@@ -51,12 +65,13 @@ use crate::ChunkMesh;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct RenderVertex {
-    /// f32 of the f64 world position.
+    /// f32 of the morph target's f64 world position (shared by every vertex
+    /// that collapses onto it).
     pub position_high: [f32; 3],
     /// f32 of (world position − `position_high`).
     pub position_low: [f32; 3],
-    /// Morph target − position, metres (f32 of the f64 difference).
-    pub morph_offset: [f32; 3],
+    /// f32 of (morph target − `position_high`).
+    pub target_low: [f32; 3],
     /// Unit normal, octahedral encoding, snorm16 × 2.
     pub normal: [i16; 2],
     /// Material id in the low 16 bits, [`MeshVertex`](crate::MeshVertex)
@@ -139,11 +154,16 @@ impl RenderVertex {
     /// itself is formed in f32 exactly as on the GPU.
     #[must_use]
     pub fn drawn_relative(&self, frame: &FrameDraw, chunk: &ChunkDraw) -> DVec3 {
-        let rel = |k: usize| (self.position_high[k] - frame.eye_high[k]) + (self.position_low[k] - frame.eye_low[k]);
-        let mut rel = DVec3::new(f64::from(rel(0)), f64::from(rel(1)), f64::from(rel(2)));
+        let relative = |low: [f32; 3]| {
+            let axis = |k: usize| f64::from((self.position_high[k] - frame.eye_high[k]) + (low[k] - frame.eye_low[k]));
+            DVec3::new(axis(0), axis(1), axis(2))
+        };
+        let fine = relative(self.position_low);
+        let mut rel = fine;
         if frame.morph {
-            let mu = vertex_morph_factor(frame, chunk, rel.length());
-            rel += Vec3::from_array(self.morph_offset).as_dvec3() * (1.0 - mu);
+            let mu = vertex_morph_factor(frame, chunk, fine.length());
+            let target = relative(self.target_low);
+            rel = target + (fine - target) * mu;
         }
         let flags = (self.packed >> 16) as u16;
         if flags & crate::MeshVertex::SKIRT != 0 {
@@ -187,12 +207,13 @@ impl ChunkMesh {
                 // A skirt vertex carries the vertex it hangs from; the
                 // renderer lowers it by the side's depth.
                 let from = self.skirt_top(i).map_or(i, |top| top as usize);
-                let (world, morph) = (self.world[from], self.morph_world[from]);
-                let (position_high, position_low) = split_high_low(world);
+                let (world, target) = (self.world[from], self.morph_world[from]);
+                let (position_high, target_low) = split_high_low(target);
+                let high = Vec3::from_array(position_high).as_dvec3();
                 RenderVertex {
                     position_high,
-                    position_low,
-                    morph_offset: (morph - world).as_vec3().to_array(),
+                    position_low: (world - high).as_vec3().to_array(),
+                    target_low,
                     normal: encode_normal(v.normal),
                     packed: u32::from(v.material) | (u32::from(v.flags) << 16),
                 }

@@ -369,7 +369,7 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     let vertex = RenderVertex {
         position_high: [0.0; 3],
         position_low: [0.0; 3],
-        morph_offset: [0.0; 3],
+        target_low: [0.0; 3],
         normal: [0; 2],
         packed: 0,
     };
