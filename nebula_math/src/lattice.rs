@@ -209,16 +209,31 @@ impl Cubesphere {
             2
         };
         let face = CubeFace::from_axis(axis, world[axis] > 0.0);
-        let on_plane = world / largest;
+        let (i, j) = self
+            .face_coords_in(face, world)
+            .ok_or(MathError::NotPositive { name: "distance from the planet centre", value: largest })?;
+        Ok((face, i, j))
+    }
+
+    /// Fractional in-face coordinates `(i, j)` of `world` in `face`'s frame
+    /// (the inverse of [`Cubesphere::direction`] on that face), also for
+    /// directions just past the face's edges; `None` unless `world` is in
+    /// front of the face (positive along its normal).
+    #[must_use]
+    pub fn face_coords_in(&self, face: CubeFace, world: DVec3) -> Option<(f64, f64)> {
+        let depth = world.dot(face.normal().as_dvec3());
+        if depth.is_nan() || depth <= 0.0 {
+            return None;
+        }
+        let on_plane = world / depth;
         let a = on_plane.dot(face.u_axis().as_dvec3());
         let b = on_plane.dot(face.v_axis().as_dvec3());
         let unwarp = |x: f64| match self.map {
             SphereMap::Gnomonic => x,
             SphereMap::EquiAngular => x.atan() / std::f64::consts::FRAC_PI_4,
         };
-        let (ta, tb) = (unwarp(a), unwarp(b));
         let half = f64::from(self.resolution / 2);
-        Ok((face, ta * half + half, tb * half + half))
+        Some((unwarp(a) * half + half, unwarp(b) * half + half))
     }
 }
 

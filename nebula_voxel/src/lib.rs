@@ -18,6 +18,9 @@
 //! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
 //!   voxels, seen by coarse LODs through the same far-corner rule, so
 //!   nothing is lost when chunks are regenerated.
+//! - **Picking** ([`pick`]) walks a ray voxel by voxel through the exact
+//!   cell walls (planes through the centre and spheres), skipping chunk
+//!   columns whose surface bounds the ray stays above.
 //! - **Noise**: the `noise` crate's fBm and ridged multifractal, evaluated
 //!   on the sphere so terrain is seamless across faces, over our own
 //!   branch-free Perlin kernel that returns the `noise` crate's values
@@ -56,6 +59,7 @@ mod edits;
 mod error;
 mod layout;
 mod perlin;
+mod pick;
 mod planet;
 mod source;
 mod voxel;
@@ -64,7 +68,8 @@ pub use chunk::{ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PaddedChunk
 pub use edits::EditedSource;
 pub use error::VoxelError;
 pub use layout::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, MAX_LOD, VoxelCoord};
-pub use nebula_math::{CubeFace, DVec3, FaceEdge};
+pub use nebula_math::{CubeFace, DVec3, FaceDirection, FaceEdge};
+pub use pick::{VoxelHit, pick};
 pub use planet::{PlanetSettings, ProceduralPlanet};
 pub use source::{SurfaceBounds, VoxelSource};
 pub use voxel::Voxel;
