@@ -30,6 +30,8 @@ pub struct EditedSource<S> {
     base: S,
     /// LOD-0 voxels that differ from `base`.
     fine: HashMap<VoxelCoord, Voxel>,
+    /// The keys of `fine` by LOD-0 chunk, for saving a chunk's edits.
+    fine_by_chunk: HashMap<ChunkKey, HashSet<VoxelCoord>>,
     /// Chunks (any LOD) whose padded region holds a voxel the edits changed.
     touched_chunks: HashSet<ChunkKey>,
     /// Per column (any LOD): lowest and highest LOD-0 layer edited inside.
@@ -39,7 +41,13 @@ pub struct EditedSource<S> {
 impl<S: VoxelSource> EditedSource<S> {
     /// Wraps `base` with no edits yet.
     pub fn new(base: S) -> Self {
-        Self { base, fine: HashMap::new(), touched_chunks: HashSet::new(), touched_columns: HashMap::new() }
+        Self {
+            base,
+            fine: HashMap::new(),
+            fine_by_chunk: HashMap::new(),
+            touched_chunks: HashSet::new(),
+            touched_columns: HashMap::new(),
+        }
     }
 
     /// The unedited source.
@@ -52,6 +60,25 @@ impl<S: VoxelSource> EditedSource<S> {
     /// same planet.
     pub fn edits(&self) -> impl Iterator<Item = (VoxelCoord, Voxel)> + '_ {
         self.fine.iter().map(|(&at, &voxel)| (at, voxel))
+    }
+
+    /// How many LOD-0 voxels differ from the base.
+    pub fn edit_count(&self) -> usize {
+        self.fine.len()
+    }
+
+    /// The edited voxels inside LOD-0 chunk `key` (padding excluded),
+    /// sorted: what a save stores for that chunk.
+    pub fn chunk_edits(&self, key: ChunkKey) -> Vec<(VoxelCoord, Voxel)> {
+        let mut edits: Vec<_> = self
+            .fine_by_chunk
+            .get(&key)
+            .into_iter()
+            .flatten()
+            .filter_map(|at| self.fine.get(at).map(|&voxel| (*at, voxel)))
+            .collect();
+        edits.sort_unstable_by_key(|&(at, _)| at);
+        edits
     }
 
     /// Sets one LOD-0 voxel. Returns the chunks, at every LOD, whose voxels
@@ -74,14 +101,52 @@ impl<S: VoxelSource> EditedSource<S> {
     /// [`VoxelError::NonFinite`] / [`VoxelError::OutOfRange`] for a bad
     /// centre or radius (at most 64 voxels).
     pub fn fill_sphere(&mut self, center: DVec3, radius: f64, voxel: Voxel) -> Result<Vec<ChunkKey>, VoxelError> {
-        let layout = *self.base.layout();
-        let sphere = layout.sphere();
-        let voxel_size = sphere.layer_height();
         if !radius.is_finite() {
             return Err(VoxelError::NonFinite { name: "radius", value: radius });
         }
-        if !(0.0..=64.0 * voxel_size).contains(&radius) {
-            return Err(VoxelError::OutOfRange { name: "radius", requirement: "in [0, 64 voxels]", value: radius });
+        self.fill_where(center, radius, voxel, |p| p.distance(center) <= radius)
+    }
+
+    /// Sets every LOD-0 voxel whose centre lies in the world-axis-aligned
+    /// box from `min` to `max` (metres, planet centre at the origin) to
+    /// `voxel`. Returns the dirty chunks.
+    ///
+    /// # Errors
+    /// [`VoxelError::NonFinite`] for NaN or infinite corners,
+    /// [`VoxelError::OutOfRange`] for `min` above `max` on an axis or a box
+    /// more than 128 voxels across.
+    pub fn fill_box(&mut self, min: DVec3, max: DVec3, voxel: Voxel) -> Result<Vec<ChunkKey>, VoxelError> {
+        for value in min.to_array().into_iter().chain(max.to_array()) {
+            if !value.is_finite() {
+                return Err(VoxelError::NonFinite { name: "box corner", value });
+            }
+        }
+        let extent = max - min;
+        if extent.min_element() < 0.0 {
+            return Err(VoxelError::OutOfRange {
+                name: "box extent",
+                requirement: "max ≥ min on every axis",
+                value: extent.min_element(),
+            });
+        }
+        let inside = |p: DVec3| p.cmpge(min).all() && p.cmple(max).all();
+        self.fill_where((min + max) * 0.5, extent.length() * 0.5, voxel, inside)
+    }
+
+    /// Sets every LOD-0 voxel whose centre is within `reach` metres of
+    /// `center` and satisfies `inside` to `voxel`.
+    fn fill_where(
+        &mut self,
+        center: DVec3,
+        reach: f64,
+        voxel: Voxel,
+        inside: impl Fn(DVec3) -> bool,
+    ) -> Result<Vec<ChunkKey>, VoxelError> {
+        let layout = *self.base.layout();
+        let sphere = layout.sphere();
+        let voxel_size = sphere.layer_height();
+        if !(0.0..=64.0 * voxel_size).contains(&reach) {
+            return Err(VoxelError::OutOfRange { name: "radius", requirement: "in [0, 64 voxels]", value: reach });
         }
         let (face, fi, fj) = sphere.face_coords_of(center)?;
         let layer = sphere.radius_to_layer(center.length());
@@ -93,13 +158,13 @@ impl<S: VoxelSource> EditedSource<S> {
             });
         }
         // Cells shrink towards face corners (by up to √2): widen the search.
-        let reach = (radius / layout.sphere().cell_width() * 1.5).ceil() as i64 + 1;
-        let reach_h = (radius / voxel_size).ceil() as i64 + 1;
+        let reach_ij = (reach / layout.sphere().cell_width() * 1.5).ceil() as i64 + 1;
+        let reach_h = (reach / voxel_size).ceil() as i64 + 1;
         let per_edge = i64::from(layout.voxels_per_edge(0));
         let mut dirty = BTreeSet::new();
         let mut seen = HashSet::new();
-        for di in -reach..=reach {
-            for dj in -reach..=reach {
+        for di in -reach_ij..=reach_ij {
+            for dj in -reach_ij..=reach_ij {
                 let (ci, cj) = (fi.floor() as i64 + di, fj.floor() as i64 + dj);
                 let Some((f, i, j)) = face.wrap_cell(ci, cj, per_edge) else { continue };
                 if !seen.insert((f, i, j)) {
@@ -108,8 +173,7 @@ impl<S: VoxelSource> EditedSource<S> {
                 let direction = sphere.direction(f, i as f64 + 0.5, j as f64 + 0.5);
                 for dh in -reach_h..=reach_h {
                     let h = layer.floor() as i64 + dh;
-                    let world = direction * sphere.layer_radius(h as f64 + 0.5);
-                    if world.distance(center) <= radius {
+                    if inside(direction * sphere.layer_radius(h as f64 + 0.5)) {
                         let at = VoxelCoord { face: f, lod: 0, i: i as u32, j: j as u32, h: h as i32 };
                         self.set_voxel_into(at, voxel, &mut dirty)?;
                     }
@@ -134,10 +198,18 @@ impl<S: VoxelSource> EditedSource<S> {
         if old == voxel {
             return Ok(());
         }
+        let chunk = layout.chunk_of(at);
         if self.base.voxel(at)? == voxel {
             self.fine.remove(&at);
+            if let Some(set) = self.fine_by_chunk.get_mut(&chunk) {
+                set.remove(&at);
+                if set.is_empty() {
+                    self.fine_by_chunk.remove(&chunk);
+                }
+            }
         } else {
             self.fine.insert(at, voxel);
+            self.fine_by_chunk.entry(chunk).or_default().insert(at);
         }
         // The voxel is itself the voxel at every LOD where it is the far
         // corner of its cell (all three indices ≡ −1 mod 2^L).
