@@ -40,13 +40,17 @@ use nebula_math::{DVec3, FaceDirection};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshOptions, RenderVertex, mesh_chunk, skirt_depth,
 };
-use nebula_voxel::{ChunkColumn, ChunkKey, ProceduralPlanet, VoxelSource};
+use nebula_voxel::{ChunkColumn, ChunkKey, EditedSource, ProceduralPlanet, VoxelSource};
 
 use crate::gpu::{DebugView, FrameParams, Gpu, GpuMesh};
 
+/// The voxels the demo draws: the procedural planet with the player's
+/// edits (none without `--world`).
+pub type PlanetVoxels = EditedSource<ProceduralPlanet>;
+
 /// The planet's voxels, shared with meshing jobs.
 #[derive(Resource, Clone)]
-pub struct Planet(pub Arc<ProceduralPlanet>);
+pub struct Planet(pub Arc<PlanetVoxels>);
 
 /// The LOD selection.
 #[derive(Resource)]
@@ -155,7 +159,7 @@ struct CachedColumn {
 }
 
 impl CachedColumn {
-    fn new(planet: &ProceduralPlanet, column: ChunkColumn, frame: u64) -> Self {
+    fn new(planet: &PlanetVoxels, column: ChunkColumn, frame: u64) -> Self {
         let layers = planet.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
         Self { layers, chunks: HashMap::new(), last_used: frame }
     }
@@ -376,7 +380,8 @@ impl PlanetApp {
     ///
     /// # Errors
     /// If the LOD settings are bad or a root cannot be meshed.
-    pub fn new(planet: ProceduralPlanet, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
+    pub fn new(planet: impl Into<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
+        let planet = planet.into();
         let tree = LodTree::new(&planet, settings)?;
         let mut world = World::new();
         let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
@@ -650,7 +655,7 @@ fn cpu_mesh(mesh: &nebula_meshing::ChunkMesh) -> CpuMesh {
 
 /// Uploads a finished job into the cache (a failed one is logged and
 /// stored empty, so its column is not blocked for ever).
-fn store(cache: &mut MeshCache, planet: &ProceduralPlanet, gpu: &Gpu, done: MeshResult, frame: u64) -> bool {
+fn store(cache: &mut MeshCache, planet: &PlanetVoxels, gpu: &Gpu, done: MeshResult, frame: u64) -> bool {
     let column = done.key.column();
     let (mesh, failed) = match done.result {
         Ok(mesh) => (mesh, false),
@@ -849,7 +854,7 @@ fn select_system(
 /// drawn across that side needs (none next to the same LOD, whose
 /// boundary vertices are shared exactly).
 fn chunk_draw(
-    planet: &ProceduralPlanet,
+    planet: &PlanetVoxels,
     column: ChunkColumn,
     drawn: &HashSet<ChunkColumn>,
     options: DrawOptions,
@@ -893,7 +898,7 @@ thread_local! {
 /// Starts workers until every meshing thread has one or the queue is empty.
 /// A worker takes the top job, meshes it and sends it back, until the queue
 /// is empty; nothing ever waits for it.
-fn spawn_workers(meshing: &Meshing, planet: &Arc<ProceduralPlanet>) {
+fn spawn_workers(meshing: &Meshing, planet: &Arc<PlanetVoxels>) {
     loop {
         let queued = meshing.state.lock().map_or(0, |s| s.queue.len());
         let workers = meshing.workers.load(Ordering::Acquire);

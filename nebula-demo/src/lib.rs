@@ -22,6 +22,7 @@
 
 pub mod app;
 pub mod arena;
+pub mod commands;
 pub mod crack;
 pub mod flight;
 pub mod gpu;

@@ -13,13 +13,15 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
-use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, View, camera};
+use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, camera};
+use nebula_demo::commands;
 use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::planet_settings;
 use nebula_lod::LodSettings;
 use nebula_math::DVec3;
-use nebula_voxel::{ProceduralPlanet, VoxelSource};
+use nebula_voxel::VoxelSource;
+use nebula_world::World;
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -98,6 +100,10 @@ struct Args {
     /// Draw LOD seams without skirts (for debugging: they open).
     #[arg(long)]
     no_skirts: bool,
+    /// A saved world (created if missing): its edits are drawn, picked and
+    /// edited; `edit` saves into it.
+    #[arg(long, value_name = "PATH")]
+    world: Option<PathBuf>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -107,6 +113,27 @@ enum Command {
         /// As JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Print the first solid voxel on the ray from --camera-pos towards
+    /// --look-at, as JSON (`"hit": false` when there is none).
+    Pick,
+    /// Apply an edit to the --world and save it; prints what changed as
+    /// JSON.
+    Edit {
+        /// A ball: centre and radius in metres.
+        #[arg(long, value_name = "X,Y,Z,R", conflicts_with_all = ["cuboid", "script"])]
+        sphere: Option<String>,
+        /// A world-axis-aligned box: two corners in metres.
+        #[arg(long = "box", value_name = "X0,Y0,Z0,X1,Y1,Z1", conflicts_with = "script")]
+        cuboid: Option<String>,
+        /// What the voxels become: air, stone, dirt, grass, sand, snow.
+        #[arg(long, value_name = "MATERIAL", default_value = "air")]
+        set: String,
+        /// Read edits from this file (`-` for stdin), one per line:
+        /// `sphere X,Y,Z,R MATERIAL` or `box X0,Y0,Z0,X1,Y1,Z1 MATERIAL`;
+        /// each is saved before its JSON line is printed.
+        #[arg(long, value_name = "PATH")]
+        script: Option<PathBuf>,
     },
 }
 
@@ -160,10 +187,43 @@ fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let settings = planet_settings(args.seed, args.radius, args.voxel_size);
-    let planet = ProceduralPlanet::new(settings.clone()).context("bad planet parameters")?;
-    if let Some(Command::Info { json }) = args.command {
-        return info(&planet, json);
+    let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
+        args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
+    })?;
+    match &args.command {
+        Some(Command::Info { json }) => return info(&world, *json),
+        Some(Command::Pick) => {
+            let (Some(eye), Some(look_at)) = (args.camera_pos, args.look_at) else {
+                bail!("pick needs --camera-pos and --look-at");
+            };
+            println!("{}", serde_json::to_string_pretty(&commands::pick(&world, eye, look_at)?)?);
+            return Ok(());
+        }
+        Some(Command::Edit { sphere, cuboid, set, script }) => {
+            if args.world.is_none() {
+                bail!("edit needs --world PATH to save into");
+            }
+            if let Some(script) = script {
+                let stdout = std::io::stdout().lock();
+                return if script.as_os_str() == "-" {
+                    commands::edit_script(&mut world, std::io::stdin().lock(), stdout)
+                } else {
+                    let file = std::fs::File::open(script).with_context(|| format!("opening {}", script.display()))?;
+                    commands::edit_script(&mut world, std::io::BufReader::new(file), stdout)
+                };
+            }
+            let voxel = commands::material(set)?;
+            let edit = match (sphere, cuboid) {
+                (Some(sphere), _) => commands::shape_edit("sphere", sphere, voxel)?,
+                (_, Some(cuboid)) => commands::shape_edit("box", cuboid, voxel)?,
+                _ => bail!("edit needs --sphere, --box or --script"),
+            };
+            println!("{}", serde_json::to_string_pretty(&commands::edit(&mut world, &[edit])?)?);
+            return Ok(());
+        }
+        None => {}
     }
+    let planet = world.into_source();
     let default_eye = DVec3::new(0.35, 0.55, 0.76).normalize() * args.radius * 2.6;
     let shot = Shot {
         position: args.camera_pos.unwrap_or(default_eye),
@@ -192,7 +252,8 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn info(planet: &ProceduralPlanet, json: bool) -> anyhow::Result<()> {
+fn info(world: &World, json: bool) -> anyhow::Result<()> {
+    let planet = world.source().base();
     let layout = planet.layout();
     // The face roots' bounds cover the whole planet.
     let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -209,18 +270,21 @@ fn info(planet: &ProceduralPlanet, json: bool) -> anyhow::Result<()> {
         "max_surface_radius": max,
         "max_lod": layout.max_lod(),
         "seed": s.seed,
+        "world": world.store().map(|store| store.path().display().to_string()),
+        "edited_voxels": world.edit_count(),
     });
     if json {
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         println!(
-            "radius {} m, voxel {:.3} m, surface between {} and {} m, LODs 0..={}, seed {}",
+            "radius {} m, voxel {:.3} m, surface between {} and {} m, LODs 0..={}, seed {}, {} edited voxels",
             s.radius,
             planet.voxel_size(),
             min,
             max,
             layout.max_lod(),
-            s.seed
+            s.seed,
+            world.edit_count()
         );
     }
     Ok(())
@@ -239,7 +303,7 @@ fn draw_options(args: &Args) -> DrawOptions {
     DrawOptions { skirts: !args.no_skirts, morph: args.morph }
 }
 
-fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Result<()> {
+fn headless(planet: PlanetVoxels, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = nebula_demo::headless::headless_gpu()?;
     let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
@@ -279,7 +343,7 @@ fn headless(planet: ProceduralPlanet, shot: &Shot, args: &Args) -> anyhow::Resul
     Ok(())
 }
 
-fn flight(planet: ProceduralPlanet, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
+fn flight(planet: PlanetVoxels, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
     let gpu = nebula_demo::headless::headless_gpu()?;
@@ -301,12 +365,12 @@ fn flight(planet: ProceduralPlanet, shot: &Shot, path: &std::path::Path, args: &
 }
 
 fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
-    app.world.resource::<nebula_demo::app::Planet>().0.surface_point(dir).length()
+    app.world.resource::<nebula_demo::app::Planet>().0.base().surface_point(dir).length()
 }
 
 /// The windowed demo.
 struct Windowed {
-    planet: Option<ProceduralPlanet>,
+    planet: Option<PlanetVoxels>,
     options: DrawOptions,
     shot: Shot,
     state: Option<WindowState>,
@@ -328,12 +392,7 @@ struct WindowState {
     app: PlanetApp,
 }
 
-fn windowed(
-    event_loop: EventLoop<()>,
-    planet: ProceduralPlanet,
-    shot: Shot,
-    options: DrawOptions,
-) -> anyhow::Result<()> {
+fn windowed(event_loop: EventLoop<()>, planet: PlanetVoxels, shot: Shot, options: DrawOptions) -> anyhow::Result<()> {
     let forward = (shot.look_at - shot.position).normalize();
     let mut demo = Windowed {
         planet: Some(planet),
@@ -537,5 +596,17 @@ impl ApplicationHandler for Windowed {
             self.yaw += delta.0 * 0.003;
             self.pitch = (self.pitch - delta.1 * 0.003).clamp(-1.55, 1.55);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// clap checks argument names and conflicts only when a command is
+    /// parsed: check them all here rather than in front of a user.
+    #[test]
+    fn the_command_line_is_consistent() {
+        super::Args::command().debug_assert();
     }
 }

@@ -38,6 +38,12 @@ pub struct EditedSource<S> {
     touched_columns: HashMap<ChunkColumn, (i64, i64)>,
 }
 
+impl<S: VoxelSource> From<S> for EditedSource<S> {
+    fn from(base: S) -> Self {
+        Self::new(base)
+    }
+}
+
 impl<S: VoxelSource> EditedSource<S> {
     /// Wraps `base` with no edits yet.
     pub fn new(base: S) -> Self {

@@ -21,6 +21,29 @@ impl Voxel {
     /// The top voxel of high columns.
     pub const SNOW: Voxel = Voxel(5);
 
+    /// The named materials, by name (what command lines and save tools
+    /// show).
+    pub const NAMED: [(&'static str, Voxel); 6] = [
+        ("air", Voxel::AIR),
+        ("stone", Voxel::STONE),
+        ("dirt", Voxel::DIRT),
+        ("grass", Voxel::GRASS),
+        ("sand", Voxel::SAND),
+        ("snow", Voxel::SNOW),
+    ];
+
+    /// The voxel named `name` (case-insensitive), or `None`.
+    #[must_use]
+    pub fn named(name: &str) -> Option<Voxel> {
+        Self::NAMED.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|&(_, voxel)| voxel)
+    }
+
+    /// The voxel's name, or `None` for an unnamed material id.
+    #[must_use]
+    pub fn name(self) -> Option<&'static str> {
+        Self::NAMED.iter().find(|(_, voxel)| *voxel == self).map(|&(name, _)| name)
+    }
+
     /// The voxel with material id `material` (0 is air).
     #[must_use]
     pub const fn from_material(material: u8) -> Voxel {

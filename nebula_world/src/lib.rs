@@ -153,6 +153,12 @@ impl<S: VoxelSource> World<S> {
         &self.source
     }
 
+    /// The voxels with every edit applied, for a renderer that takes them
+    /// over (the file is closed; edits made so far are saved).
+    pub fn into_source(self) -> EditedSource<S> {
+        self.source
+    }
+
     /// The world file, if any.
     pub fn store(&self) -> Option<&WorldStore> {
         self.store.as_ref()

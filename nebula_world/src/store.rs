@@ -198,7 +198,7 @@ fn read_all(db: &impl ReadableDatabase, path: &Path, planet: &str) -> Result<Vec
     Ok(edits)
 }
 
-fn encode(key: ChunkKey, edits: &[(VoxelCoord, Voxel)]) -> Vec<u8> {
+pub(crate) fn encode(key: ChunkKey, edits: &[(VoxelCoord, Voxel)]) -> Vec<u8> {
     let mut bytes = Vec::with_capacity(5 + 3 * edits.len());
     bytes.push(FORMAT_VERSION);
     bytes.extend_from_slice(&(edits.len() as u32).to_le_bytes());
@@ -214,7 +214,7 @@ fn encode(key: ChunkKey, edits: &[(VoxelCoord, Voxel)]) -> Vec<u8> {
     bytes
 }
 
-fn decode(key: ChunkKey, bytes: &[u8], out: &mut Vec<(VoxelCoord, Voxel)>) -> Result<(), String> {
+pub(crate) fn decode(key: ChunkKey, bytes: &[u8], out: &mut Vec<(VoxelCoord, Voxel)>) -> Result<(), String> {
     let (&version, rest) = bytes.split_first().ok_or("empty value")?;
     if version != FORMAT_VERSION {
         return Err(format!("value format {version}, expected {FORMAT_VERSION}"));

@@ -170,3 +170,52 @@ fn bad_edits_are_errors_and_the_good_ones_before_them_are_kept() {
     drop(world);
     assert_eq!(World::open(settings, Some(&path)).unwrap().edit_count(), kept);
 }
+
+fn any_chunk() -> impl proptest::strategy::Strategy<Value = ChunkKey> {
+    use proptest::prelude::*;
+    (0usize..6, 0u32..1 << 12, 0u32..1 << 12, -1000i32..1000).prop_map(|(face, x, y, layer)| ChunkKey {
+        face: nebula_voxel::CubeFace::ALL[face],
+        lod: 0,
+        x,
+        y,
+        layer,
+    })
+}
+
+proptest::proptest! {
+    /// A chunk's saved edits decode to what was encoded.
+    #[test]
+    fn chunk_diffs_round_trip(key in any_chunk(), cells in proptest::collection::btree_map(0u32..32 * 32 * 32, 0u8..=255, 0..200)) {
+        let edits: Vec<(VoxelCoord, Voxel)> = cells
+            .iter()
+            .map(|(&cell, &material)| {
+                let at = VoxelCoord {
+                    face: key.face,
+                    lod: 0,
+                    i: key.x * 32 + cell % 32,
+                    j: key.y * 32 + cell / 32 % 32,
+                    h: key.layer * 32 + (cell / 1024) as i32,
+                };
+                (at, Voxel::from_material(material))
+            })
+            .collect();
+        let mut back = Vec::new();
+        store::decode(key, &store::encode(key, &edits), &mut back).unwrap();
+        back.sort_unstable_by_key(|&(at, _)| at);
+        let mut want = edits.clone();
+        want.sort_unstable_by_key(|&(at, _)| at);
+        proptest::prop_assert_eq!(back, want);
+    }
+
+    /// Arbitrary bytes as a chunk value never panic: an error, or voxels
+    /// inside that chunk.
+    #[test]
+    fn any_bytes_decode_to_an_error_or_voxels_of_the_chunk(key in any_chunk(), bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..64)) {
+        let mut out = Vec::new();
+        if store::decode(key, &bytes, &mut out).is_ok() {
+            for (at, _) in out {
+                proptest::prop_assert_eq!((at.i / 32, at.j / 32, at.h.div_euclid(32)), (key.x, key.y, key.layer));
+            }
+        }
+    }
+}
