@@ -14,10 +14,8 @@ use crate::arena::{MeshArena, Slot};
 /// colour is stored exactly (the shader encodes sRGB itself).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Dynamic uniform offsets must be multiples of this.
-const CHUNK_UNIFORM_STRIDE: u64 = 256;
-/// The part of a chunk's uniform slot the shader reads.
-const CHUNK_UNIFORM_BYTES: u64 = 32;
+/// Bytes of one chunk's entry in the per-frame chunk table.
+const CHUNK_UNIFORM_BYTES: u64 = size_of::<ChunkUniform>() as u64;
 
 /// Errors of the GPU side.
 #[derive(Debug, thiserror::Error)]
@@ -48,7 +46,6 @@ struct FrameUniform {
 struct ChunkUniform {
     info: [f32; 4],
     skirt_depths: [f32; 4],
-    _pad: [f32; 56],
 }
 
 /// Debug views, chosen by key or flag.
@@ -183,10 +180,10 @@ impl Gpu {
             label: Some("chunk layout"),
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                visibility: wgpu::ShaderStages::VERTEX,
                 ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
                     min_binding_size: NonZeroU64::new(CHUNK_UNIFORM_BYTES),
                 },
                 count: None,
@@ -342,7 +339,6 @@ impl Gpu {
             .map(|(m, draw)| ChunkUniform {
                 info: [f32::from(m.lod), f32::from(frame.max_lod), m.id as f32, draw.parent_error.min(1e30) as f32],
                 skirt_depths: draw.skirt_depths,
-                _pad: [0.0; 56],
             })
             .collect();
         if !chunk_uniforms.is_empty() {
@@ -379,6 +375,12 @@ impl Gpu {
             };
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
+            // One table of per-chunk constants for the whole frame, read by
+            // the instance index, instead of a bind group change per chunk:
+            // on lavapipe every draw after a dynamic-offset rebind kept its
+            // own copy of the descriptor state, about 800 MB per frame of
+            // 8,000 chunks that was never given back.
+            pass.set_bind_group(1, &self.chunk_group, &[]);
             let mut bound = None;
             for (n, (mesh, draw)) in meshes.iter().enumerate() {
                 let Some(slot) = &mesh.slot else { continue };
@@ -387,7 +389,7 @@ impl Gpu {
                 if ranges.iter().all(std::ops::Range::is_empty) {
                     continue;
                 }
-                pass.set_bind_group(1, &self.chunk_group, &[(n as u64 * CHUNK_UNIFORM_STRIDE) as u32]);
+                let instance = n as u32;
                 if bound != Some(slot.page) {
                     let page = pages.page(slot.page);
                     pass.set_vertex_buffer(0, page.vertices.slice(..));
@@ -396,7 +398,7 @@ impl Gpu {
                 }
                 let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
                 for range in ranges.into_iter().filter(|r| !r.is_empty()) {
-                    pass.draw_indexed(first + range.start as u32..first + range.end as u32, base, 0..1);
+                    pass.draw_indexed(first + range.start as u32..first + range.end as u32, base, instance..instance + 1);
                 }
             }
         }
@@ -431,9 +433,9 @@ impl Gpu {
 
 fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u64) -> (wgpu::Buffer, wgpu::BindGroup) {
     let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("chunk uniforms"),
-        size: capacity * CHUNK_UNIFORM_STRIDE,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        label: Some("chunk table"),
+        size: capacity * CHUNK_UNIFORM_BYTES,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -441,11 +443,7 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
         layout,
         entries: &[wgpu::BindGroupEntry {
             binding: 0,
-            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: &buffer,
-                offset: 0,
-                size: NonZeroU64::new(CHUNK_UNIFORM_BYTES),
-            }),
+            resource: buffer.as_entire_binding(),
         }],
     });
     (buffer, group)

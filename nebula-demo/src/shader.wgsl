@@ -22,7 +22,8 @@ struct Chunk {
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(1) @binding(0) var<uniform> chunk: Chunk;
+// One entry per chunk drawn this frame, indexed by the instance index.
+@group(1) @binding(0) var<storage, read> chunks: array<Chunk>;
 
 // nebula_meshing::RenderVertex.
 struct VertexIn {
@@ -41,6 +42,8 @@ struct VertexOut {
     @location(1) @interpolate(flat) material: u32,
     @location(2) @interpolate(flat) flags: u32,
     @location(3) morph: f32,
+    // x: LOD, y: chunk id (for colouring).
+    @location(4) @interpolate(flat) lod_id: vec2<f32>,
 };
 
 // μ = smoothstep(clamp((ρ_p/τ − 1) / (1.4 − 1), 0, 1)), ρ_p = δ_parent·K / D:
@@ -49,9 +52,9 @@ struct VertexOut {
 // LOD is needed, 0 where the parent would do. Every input is global, per LOD
 // or a function of the vertex position, so vertices shared by neighbouring
 // chunks morph identically.
-fn morph_factor(relative: vec3<f32>) -> f32 {
+fn morph_factor(parent_error: f32, relative: vec3<f32>) -> f32 {
     let distance = max(length(relative), 1e-3);
-    let rho = chunk.info.w * frame.params.x / distance;
+    let rho = parent_error * frame.params.x / distance;
     let x = clamp((rho / frame.params.y - 1.0) / 0.4, 0.0, 1.0);
     return x * x * (3.0 - 2.0 * x);
 }
@@ -66,8 +69,9 @@ fn decode_normal(e: vec2<f32>) -> vec3<f32> {
 }
 
 @vertex
-fn vs_main(in: VertexIn) -> VertexOut {
+fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
     var out: VertexOut;
+    let chunk = chunks[instance];
     // Vertex − eye from the high and low parts: a function of the vertex's
     // canonical world position and the frame only, never of the chunk, so a
     // vertex shared by two chunks lands on the same clip position in both.
@@ -79,7 +83,7 @@ fn vs_main(in: VertexIn) -> VertexOut {
     var relative = fine;
     var mu = 1.0;
     if (frame.params.w > 0.5) {
-        mu = morph_factor(fine);
+        mu = morph_factor(chunk.info.w, fine);
         let morph_target = base + (in.target_low - frame.eye_low.xyz);
         relative = morph_target + mu * (fine - morph_target);
     }
@@ -96,6 +100,7 @@ fn vs_main(in: VertexIn) -> VertexOut {
     out.material = in.packed & 0xffffu;
     out.flags = flags;
     out.morph = mu;
+    out.lod_id = chunk.info.xz;
     return out;
 }
 
@@ -131,7 +136,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var base = material_colour(in.material);
     let view = u32(frame.params.z + 0.5);
     if (view == 1u) {
-        base = lod_colour(chunk.info.x);
+        base = lod_colour(in.lod_id.x);
     } else if (view == 2u && (in.flags & 1u) != 0u) {
         base = vec3<f32>(1.0, 0.1, 0.6);
     } else if (view == 3u) {
@@ -139,7 +144,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     } else if (view == 4u) {
         base = vec3<f32>(0.95, 0.95, 0.95);
     } else if (view == 5u) {
-        base = lod_colour(chunk.info.z * 0.37 + 0.1);
+        base = lod_colour(in.lod_id.y * 0.37 + 0.1);
     }
     return vec4<f32>(encode(base * light), 1.0);
 }
