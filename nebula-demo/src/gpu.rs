@@ -398,7 +398,11 @@ impl Gpu {
                 }
                 let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
                 for range in ranges.into_iter().filter(|r| !r.is_empty()) {
-                    pass.draw_indexed(first + range.start as u32..first + range.end as u32, base, instance..instance + 1);
+                    pass.draw_indexed(
+                        first + range.start as u32..first + range.end as u32,
+                        base,
+                        instance..instance + 1,
+                    );
                 }
             }
         }
@@ -441,10 +445,7 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
     let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("chunk bind group"),
         layout,
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: buffer.as_entire_binding(),
-        }],
+        entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
     });
     (buffer, group)
 }

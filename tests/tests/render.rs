@@ -100,9 +100,21 @@ fn check(name: &str, settings: &PlanetSettings, shot: &Shot, min_planet_fraction
 /// Flies `flight` (every frame checked), saves its frames' report, and
 /// asserts every frame is crack-free.
 fn check_flight(name: &str, settings: &PlanetSettings, flight: &Flight, fps: f64) -> FlightReport {
+    check_flight_in_budget(name, settings, flight, fps, nebula_demo::app::MeshCache::default_max_bytes())
+}
+
+/// [`check_flight`] with the mesh cache held to `max_bytes`.
+fn check_flight_in_budget(
+    name: &str,
+    settings: &PlanetSettings,
+    flight: &Flight,
+    fps: f64,
+    max_bytes: u64,
+) -> FlightReport {
     let first = flight.pose(0.0);
     let template = Shot { up: first.up, ..shot(first.pos, first.look_at, 60.0) };
     let mut app = app(settings, &template, DrawOptions::default());
+    app.world.resource_mut::<nebula_demo::app::MeshCache>().max_bytes = max_bytes;
     let dir = folder().join(name);
     let report = fly(&mut app, flight, &template, fps, Some(&dir)).expect("flies");
     std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&report.json()).expect("json"))
@@ -264,6 +276,41 @@ fn earth_flight_across_a_cube_edge_at_300_m_s_is_crack_free_in_every_frame() {
     let start = (edge - across.normalize() * (600.0 / settings.radius)).normalize();
     let flight = ground_flight(&settings, start, across, 300.0, 80.0, 20.0, 3.0);
     check_flight("earth-edge-flight", &settings, &flight, 8.0);
+}
+
+#[test]
+fn earth_fast_low_flights_are_crack_free_and_stay_in_the_mesh_budget() {
+    if !adapter_or_skip("earth fast low flights") {
+        return;
+    }
+    // Random flights from a fixed seed: 15–150 m over the ground at
+    // 600–3,000 m/s, any heading, 10–50° down, the whole flight checked
+    // frame by frame, with a mesh budget small enough (64 MiB) that the
+    // cache must free meshes while streaming cannot keep up: held to it,
+    // still complete.
+    let settings = earth();
+    let mut state = 0xf1_1e5_u64;
+    let mut unit = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let budget = 64 << 20;
+    let mut fullest = 0;
+    for n in 0..3 {
+        let start = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
+        let heading = start.any_orthonormal_vector().lerp(start.cross(DVec3::Y), unit());
+        let (altitude, speed, pitch) = (15.0 + unit() * 135.0, 600.0 + unit() * 2_400.0, 10.0 + unit() * 40.0);
+        let flight = ground_flight(&settings, start, heading, speed, altitude, pitch, 2.0);
+        let name = format!("earth-fast-flight-{n}");
+        let report = check_flight_in_budget(&name, &settings, &flight, 8.0, budget);
+        let held = report.frames.iter().map(|f| f.figures.frame.held_bytes).max().unwrap_or(0);
+        println!("{name}: {altitude:.0} m up at {speed:.0} m/s, {pitch:.0} deg down: meshes held <= {} MB", held >> 20);
+        assert!(held <= budget + budget / 10, "{name}: {held} bytes of meshes held, budget {budget}");
+        fullest = fullest.max(held);
+    }
+    assert!(fullest > budget / 2, "the budget was never approached ({fullest} bytes): the check cannot tell");
 }
 
 #[test]
