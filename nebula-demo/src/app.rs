@@ -758,14 +758,17 @@ fn select_system(
         }
         wanted.push(leaf);
         stand_ins += 1;
-        if leaf.lod > 0 && children(leaf).iter().all(|&c| cache.ready(c)) {
-            drawn.extend(children(leaf));
+        if let Some(finer) = children(leaf)
+            && finer.iter().all(|&c| cache.ready(c))
+        {
+            drawn.extend(finer);
             continue;
         }
         let mut ancestor = leaf;
         let mut found = false;
         while ancestor.lod < max_lod {
-            ancestor = parent(ancestor);
+            let Some(up) = parent(ancestor) else { break };
+            ancestor = up;
             if cache.ready(ancestor) {
                 found = true;
                 break;
@@ -785,7 +788,8 @@ fn select_system(
     let covered = |column: ChunkColumn| {
         let mut c = column;
         while c.lod < max_lod {
-            c = parent(c);
+            let Some(up) = parent(c) else { break };
+            c = up;
             if ancestors.contains(&c) {
                 return true;
             }
@@ -880,7 +884,8 @@ fn chunk_draw(
         // the depth for the same LOD.
         let mut other = column.lod;
         while across.lod < max_lod {
-            across = parent(across);
+            let Some(up) = parent(across) else { break };
+            across = up;
             if drawn.contains(&across) {
                 other = across.lod;
                 break;

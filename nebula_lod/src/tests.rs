@@ -47,7 +47,7 @@ fn covering(
         if column.lod == max_lod {
             return None;
         }
-        column = parent(column);
+        column = parent(column).expect("below the roots");
     }
 }
 
@@ -65,7 +65,10 @@ fn assert_tiles_faces(tree: &LodTree) {
     }
     for &leaf in leaves.keys() {
         if leaf.lod < max_lod {
-            assert!(covering(&leaves, parent(leaf), max_lod).is_none(), "{leaf:?} overlaps an ancestor leaf");
+            assert!(
+                covering(&leaves, parent(leaf).expect("below the roots"), max_lod).is_none(),
+                "{leaf:?} overlaps an ancestor leaf"
+            );
         }
     }
 }
@@ -330,4 +333,30 @@ fn refreshed_bounds_follow_an_edit() {
     assert!(after.start() < before.start(), "{before:?} -> {after:?}");
     assert!(gained.iter().any(|k| k.column() == leaf && k.layer < *before.start()));
     let _ = radius;
+}
+
+#[test]
+fn children_and_parent_refuse_what_has_none() {
+    let root = ChunkColumn { face: CubeFace::PosX, lod: 3, x: 1, y: 2 };
+    let kids = children(root).expect("LOD 3 has children");
+    assert!(kids.iter().all(|&kid| parent(kid) == Some(root)));
+    assert_eq!(children(ChunkColumn { lod: 0, ..root }), None, "LOD 0 has no children");
+    assert_eq!(children(ChunkColumn { x: u32::MAX, ..root }), None, "coordinates that would overflow");
+    assert_eq!(parent(ChunkColumn { lod: nebula_voxel::MAX_LOD, ..root }), None);
+    assert_eq!(parent(ChunkColumn { lod: u8::MAX, ..root }), None);
+}
+
+proptest! {
+    /// Arbitrary columns never panic; where both exist, a child's parent
+    /// is the column.
+    #[test]
+    fn children_and_parent_never_panic(face in 0usize..6, lod in any::<u8>(), x in any::<u32>(), y in any::<u32>()) {
+        let column = ChunkColumn { face: CubeFace::ALL[face], lod, x, y };
+        if let Some(kids) = children(column) {
+            for kid in kids {
+                prop_assert_eq!(parent(kid), Some(column));
+            }
+        }
+        let _ = parent(column);
+    }
 }

@@ -31,7 +31,7 @@ use std::cmp::Reverse;
 use std::collections::{BTreeSet, BinaryHeap, HashMap, HashSet};
 
 use nebula_math::{DVec3, FaceEdge, ScreenSpace};
-use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, VoxelSource};
+use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, MAX_LOD, VoxelSource};
 
 use crate::{
     BalanceMode, Camera, ChunkLodContext, FaceDirection, LodError, LodSettings, NeighborLodRelation, NodeBounds,
@@ -419,7 +419,7 @@ impl LodTree {
         };
         if now_split && !is_split {
             // Children first, so an error leaves the tree as it was.
-            let children = children(column);
+            let children = children_of(column);
             for child in children {
                 self.insert_node(source, child)?;
             }
@@ -438,7 +438,7 @@ impl LodTree {
         } else {
             self.schedule(column, margin);
             if recurse && is_split {
-                for child in children(column) {
+                for child in children_of(column) {
                     self.evaluate(source, child, eye, changed, evaluated, recurse)?;
                 }
             }
@@ -484,7 +484,7 @@ impl LodTree {
                 if node.lod >= self.layout.max_lod() {
                     break;
                 }
-                node = parent(node);
+                node = parent_of(node);
             }
         }
         let mut gained = Vec::new();
@@ -521,7 +521,7 @@ impl LodTree {
     }
 
     fn remove_subtree(&mut self, column: ChunkColumn, changed: &mut BTreeSet<ChunkColumn>) {
-        for child in children(column) {
+        for child in children_of(column) {
             if self.split.remove(&child) {
                 self.remove_subtree(child, changed);
             }
@@ -552,7 +552,7 @@ impl LodTree {
                     break;
                 }
                 for &column in &to_split {
-                    for child in children(column) {
+                    for child in children_of(column) {
                         self.insert_node(source, child)?;
                     }
                 }
@@ -566,7 +566,7 @@ impl LodTree {
                 drawn.contains(c)
                     || drawn_split.contains(c)
                     || c.lod == self.layout.max_lod()
-                    || split.contains(&parent(*c))
+                    || split.contains(&parent_of(*c))
             });
         }
         // Relations: all leaves after a full traversal or in restricted mode
@@ -599,7 +599,7 @@ impl LodTree {
             CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
         while let Some(column) = stack.pop() {
             if self.drawn_is_split(&column) {
-                stack.extend(children(column));
+                stack.extend(children_of(column));
             } else {
                 leaves.insert(column);
             }
@@ -636,7 +636,7 @@ impl LodTree {
     fn drawn_exists(&self, column: ChunkColumn) -> bool {
         let mut node = column;
         while node.lod < self.layout.max_lod() {
-            node = parent(node);
+            node = parent_of(node);
             if !self.drawn_is_split(&node) {
                 return false;
             }
@@ -654,7 +654,7 @@ impl LodTree {
         let mut cell = across;
         let mut diff = 0u8;
         while !self.drawn_exists(cell) {
-            cell = parent(cell);
+            cell = parent_of(cell);
             diff += 1;
         }
         if diff == 0 { NeighborLodRelation::Same } else { NeighborLodRelation::HigherThanNeighbor { lod_diff: diff } }
@@ -671,7 +671,7 @@ impl LodTree {
             let back = self.back_edge(column, edge, across);
             let mut cell = across;
             while !self.drawn_exists(cell) {
-                cell = parent(cell);
+                cell = parent_of(cell);
             }
             if cell == across {
                 self.leaves_along(across, back, &mut found);
@@ -686,7 +686,7 @@ impl LodTree {
     fn leaves_in(&self, column: ChunkColumn, found: &mut Vec<ChunkColumn>) {
         let mut cell = column;
         while !self.drawn_exists(cell) {
-            cell = parent(cell);
+            cell = parent_of(cell);
         }
         if cell != column {
             found.push(cell);
@@ -695,7 +695,7 @@ impl LodTree {
         let mut stack = vec![column];
         while let Some(c) = stack.pop() {
             if self.drawn_is_split(&c) {
-                stack.extend(children(c));
+                stack.extend(children_of(c));
             } else {
                 found.push(c);
             }
@@ -754,7 +754,7 @@ impl LodTree {
                 continue;
             }
             if self.drawn_is_split(&column) {
-                stack.extend(children(column));
+                stack.extend(children_of(column));
             } else {
                 visible.push(column);
             }
@@ -766,22 +766,43 @@ impl LodTree {
     }
 }
 
-/// The four children of `column`.
+/// The four children of `column` (one LOD finer, in the order (0,0),
+/// (1,0), (0,1), (1,1)), or `None` at LOD 0, past [`MAX_LOD`] or where the
+/// coordinates would overflow.
 #[must_use]
-pub fn children(column: ChunkColumn) -> [ChunkColumn; 4] {
+pub fn children(column: ChunkColumn) -> Option<[ChunkColumn; 4]> {
+    if column.lod == 0 || column.lod > MAX_LOD {
+        return None;
+    }
+    // The last child's coordinates must fit.
+    column.x.checked_mul(2)?.checked_add(1)?;
+    column.y.checked_mul(2)?.checked_add(1)?;
+    Some(children_of(column))
+}
+
+/// The column one LOD coarser that contains `column`, or `None` past
+/// [`MAX_LOD`] (a planet's roots have no parent on the planet: compare
+/// with its `max_lod`).
+#[must_use]
+pub fn parent(column: ChunkColumn) -> Option<ChunkColumn> {
+    (column.lod < MAX_LOD).then(|| parent_of(column))
+}
+
+/// [`children`] where the tree knows `column` is above LOD 0.
+fn children_of(column: ChunkColumn) -> [ChunkColumn; 4] {
+    debug_assert!(column.lod > 0, "{column:?} has no children");
     let (x, y, lod) = (column.x * 2, column.y * 2, column.lod - 1);
     [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(dx, dy)| ChunkColumn { face: column.face, lod, x: x + dx, y: y + dy })
 }
 
-/// The parent of a non-root `column`.
-#[must_use]
-pub fn parent(column: ChunkColumn) -> ChunkColumn {
+/// [`parent`] where the tree knows `column` is below its roots.
+fn parent_of(column: ChunkColumn) -> ChunkColumn {
     ChunkColumn { face: column.face, lod: column.lod + 1, x: column.x / 2, y: column.y / 2 }
 }
 
 /// The two children of `column` along its `edge`.
 fn edge_children(column: ChunkColumn, edge: FaceEdge) -> [ChunkColumn; 2] {
-    let [c00, c10, c01, c11] = children(column);
+    let [c00, c10, c01, c11] = children_of(column);
     match edge {
         FaceEdge::NegU => [c00, c01],
         FaceEdge::PosU => [c10, c11],

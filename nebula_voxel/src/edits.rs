@@ -227,7 +227,8 @@ impl<S: VoxelSource> EditedSource<S> {
                 if !(corner(at.i.into()) && corner(at.j.into()) && corner(at.h.into())) {
                     break;
                 }
-                cell = cell.parent();
+                let Some(up) = cell.parent() else { break };
+                cell = up;
             }
             self.mark_changed(&layout, cell, dirty);
         }

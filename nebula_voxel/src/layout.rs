@@ -87,10 +87,17 @@ pub struct VoxelCoord {
 }
 
 impl VoxelCoord {
-    /// The voxel one LOD coarser that contains this one.
+    /// The voxel one LOD coarser that contains this one, or `None` at
+    /// [`MAX_LOD`] and beyond.
     #[must_use]
-    pub fn parent(self) -> VoxelCoord {
-        VoxelCoord { lod: self.lod + 1, i: self.i / 2, j: self.j / 2, h: self.h.div_euclid(2), ..self }
+    pub fn parent(self) -> Option<VoxelCoord> {
+        (self.lod < MAX_LOD).then(|| VoxelCoord {
+            lod: self.lod + 1,
+            i: self.i / 2,
+            j: self.j / 2,
+            h: self.h.div_euclid(2),
+            ..self
+        })
     }
 }
 

@@ -370,7 +370,7 @@ fn neighbour_leaf(view: &PlanetView, column: ChunkColumn, edge: FaceEdge) -> Opt
         if cell.lod >= view.max_lod {
             return None;
         }
-        cell = nebula_lod::parent(cell);
+        cell = nebula_lod::parent(cell)?;
     }
     Some((cell, back))
 }
