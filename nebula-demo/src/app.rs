@@ -52,6 +52,12 @@ pub type PlanetVoxels = EditedSource<ProceduralPlanet>;
 #[derive(Resource, Clone)]
 pub struct Planet(pub Arc<PlanetVoxels>);
 
+/// How many times the voxels were replaced by edited ones
+/// ([`PlanetApp::set_voxels`]): a mesh made from an older generation of an
+/// edited chunk is shown only until the new one is ready.
+#[derive(Resource, Clone, Copy, Default)]
+pub struct VoxelsGeneration(pub u64);
+
 /// The LOD selection.
 #[derive(Resource)]
 pub struct Lod {
@@ -191,6 +197,9 @@ pub struct MeshCache {
     /// bound memory (measured: flying 15–150 m over Earth at 600–3,000 m/s
     /// with the crack oracle's CPU copies, the cache stays at ≤ 537 MB).
     pub max_bytes: u64,
+    /// Drawn chunks an edit changed: the old mesh stays on screen until one
+    /// of at least this voxel generation replaces it.
+    stale: HashMap<ChunkKey, u64>,
 }
 
 impl MeshCache {
@@ -251,10 +260,15 @@ struct JobState {
     /// Taken by a worker and not collected yet (running, or finished and
     /// waiting in the channel).
     running: HashSet<ChunkKey>,
+    /// The voxels jobs read and their generation: a worker takes them with
+    /// each job, so an edit reaches the next job, not the next worker.
+    voxels: Option<(Arc<PlanetVoxels>, u64)>,
 }
 
 struct MeshResult {
     key: ChunkKey,
+    /// The voxel generation the mesh was made from.
+    generation: u64,
     result: Result<CpuMesh, nebula_meshing::MeshError>,
     millis: f64,
 }
@@ -381,11 +395,20 @@ impl PlanetApp {
     /// # Errors
     /// If the LOD settings are bad or a root cannot be meshed.
     pub fn new(planet: impl Into<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
-        let planet = planet.into();
-        let tree = LodTree::new(&planet, settings)?;
+        Self::with_voxels(Arc::new(planet.into()), settings, gpu, view)
+    }
+
+    /// [`PlanetApp::new`] for voxels shared with their owner (a
+    /// `nebula_world::World::voxels` snapshot).
+    ///
+    /// # Errors
+    /// As [`PlanetApp::new`].
+    pub fn with_voxels(planet: Arc<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
+        let tree = LodTree::new(&*planet, settings)?;
         let mut world = World::new();
         let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
-        world.insert_resource(Planet(Arc::new(planet)));
+        world.insert_resource(Planet(planet));
+        world.insert_resource(VoxelsGeneration::default());
         world.insert_resource(Lod { tree });
         world.insert_resource(view);
         world.insert_resource(GpuRes(gpu));
@@ -432,7 +455,7 @@ impl PlanetApp {
                 let key = column.chunk(layer);
                 let mesh =
                     mesh_chunk(&*planet, key, &ChunkLodContext::uniform(max_lod), MeshOptions::STREAMING, &mut buffer)?;
-                results.push(MeshResult { key, result: Ok(cpu_mesh(&mesh)), millis: 0.0 });
+                results.push(MeshResult { key, generation: 0, result: Ok(cpu_mesh(&mesh)), millis: 0.0 });
             }
         }
         self.world.resource_scope(|world, mut cache: Mut<MeshCache>| {
@@ -460,6 +483,50 @@ impl PlanetApp {
         self.world.insert_resource(view);
     }
 
+    /// Draws `voxels` from now on: the same planet after edits whose dirty
+    /// chunks (every LOD, as `nebula_world::World::apply` returns them) are
+    /// `dirty`. Chunks on screen keep their old mesh until the new one is
+    /// uploaded, so an edit never opens a hole; others are dropped and
+    /// meshed again when needed. The LOD tree re-reads the bounds of the
+    /// columns touched (an edit can raise or sink the surface).
+    ///
+    /// # Errors
+    /// If the voxel source refuses a touched column.
+    pub fn set_voxels(&mut self, voxels: Arc<PlanetVoxels>, dirty: &[ChunkKey]) -> anyhow::Result<()> {
+        let generation = self.world.resource::<VoxelsGeneration>().0 + 1;
+        self.world.insert_resource(VoxelsGeneration(generation));
+        self.world.insert_resource(Planet(voxels.clone()));
+        let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
+        self.world.resource_mut::<Lod>().tree.refresh_bounds(&*voxels, columns.iter().copied())?;
+        let drawn: HashSet<ChunkColumn> = self.world.resource::<DrawList>().columns.iter().map(|(c, _)| *c).collect();
+        let mut cache = self.world.resource_mut::<MeshCache>();
+        for &column in &columns {
+            let Some(cached) = cache.columns.get_mut(&column) else { continue };
+            cached.layers = voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
+            let layers = cached.layers.clone();
+            cached.chunks.retain(|layer, _| layers.contains(layer));
+            if !drawn.contains(&column) {
+                for key in dirty.iter().filter(|key| key.column() == column) {
+                    cached.chunks.remove(&key.layer);
+                }
+            }
+        }
+        for key in dirty {
+            let column = key.column();
+            if drawn.contains(&column) && cache.columns.get(&column).is_some_and(|c| c.chunks.contains_key(&key.layer))
+            {
+                cache.stale.insert(*key, generation);
+            }
+        }
+        Ok(())
+    }
+
+    /// Chunks on screen still drawn from before an edit.
+    #[must_use]
+    pub fn stale_chunks(&self) -> usize {
+        self.world.resource::<MeshCache>().stale.len()
+    }
+
     /// Runs one frame of the systems (no drawing): LOD update, collecting
     /// finished meshes, choosing what to draw and what to mesh.
     pub fn step(&mut self) {
@@ -472,7 +539,10 @@ impl PlanetApp {
     #[must_use]
     pub fn settled(&self) -> bool {
         let draw = self.world.resource::<DrawList>();
-        draw.stand_ins == 0 && draw.holes == 0 && self.world.resource::<Meshing>().pending() == 0
+        draw.stand_ins == 0
+            && draw.holes == 0
+            && self.world.resource::<Meshing>().pending() == 0
+            && self.world.resource::<MeshCache>().stale.is_empty()
     }
 
     /// Chunk meshes held (drawn, stand-ins, or kept a while out of view):
@@ -681,6 +751,9 @@ fn store(cache: &mut MeshCache, planet: &PlanetVoxels, gpu: &Gpu, done: MeshResu
     if entry.layers.contains(&key.layer) {
         entry.chunks.insert(key.layer, loaded);
     }
+    if cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
+        cache.stale.remove(&key);
+    }
     failed
 }
 
@@ -728,6 +801,7 @@ fn collect_meshes_system(
 #[expect(clippy::too_many_arguments, reason = "a bevy system names each resource it touches")]
 fn select_system(
     planet: Res<Planet>,
+    generation: Res<VoxelsGeneration>,
     view: Res<View>,
     lod: Res<Lod>,
     frame: Res<FrameCount>,
@@ -844,12 +918,17 @@ fn select_system(
             }
         }
     }
+    // Drawn chunks an edit changed go first: the player is looking at them.
+    for (&key, _) in cache.stale.iter().filter(|(key, _)| set.contains(&key.column())) {
+        jobs.push(Job { priority: f64::MAX, key });
+    }
     if let Ok(mut state) = meshing.state.lock() {
         state.queue.clear();
         let running = state.running.clone();
         state.queue.extend(jobs.into_iter().filter(|job| !running.contains(&job.key)));
+        state.voxels = Some((planet_arc, generation.0));
     }
-    spawn_workers(&meshing, &planet_arc);
+    spawn_workers(&meshing);
     times.select_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
@@ -903,7 +982,7 @@ thread_local! {
 /// Starts workers until every meshing thread has one or the queue is empty.
 /// A worker takes the top job, meshes it and sends it back, until the queue
 /// is empty; nothing ever waits for it.
-fn spawn_workers(meshing: &Meshing, planet: &Arc<PlanetVoxels>) {
+fn spawn_workers(meshing: &Meshing) {
     loop {
         let queued = meshing.state.lock().map_or(0, |s| s.queue.len());
         let workers = meshing.workers.load(Ordering::Acquire);
@@ -913,15 +992,15 @@ fn spawn_workers(meshing: &Meshing, planet: &Arc<PlanetVoxels>) {
         meshing.workers.fetch_add(1, Ordering::AcqRel);
         let (state, workers, sender, options) =
             (meshing.state.clone(), meshing.workers.clone(), meshing.sender.clone(), meshing.options);
-        let planet = planet.clone();
         meshing.pool.spawn(move || {
             loop {
                 let job = state.lock().ok().and_then(|mut s| {
+                    let voxels = s.voxels.clone()?;
                     let job = s.queue.pop()?;
                     s.running.insert(job.key);
-                    Some(job)
+                    Some((job, voxels))
                 });
-                let Some(job) = job else { break };
+                let Some((job, (planet, generation))) = job else { break };
                 let start = Instant::now();
                 let result = BUFFER.with(|buffer| {
                     mesh_chunk(
@@ -936,7 +1015,7 @@ fn spawn_workers(meshing: &Meshing, planet: &Arc<PlanetVoxels>) {
                 let millis = start.elapsed().as_secs_f64() * 1e3;
                 // It stays in the running set until collected, so no queue
                 // refresh asks for it again while it waits in the channel.
-                let _ = sender.send(MeshResult { key: job.key, result, millis });
+                let _ = sender.send(MeshResult { key: job.key, generation, result, millis });
             }
             workers.fetch_sub(1, Ordering::AcqRel);
         });

@@ -1,11 +1,12 @@
 //! `nebula-demo`: fly around a seamless voxel planet (a window), or render it
 //! headless to PNG with a JSON report.
 //!
-//! Keys: W/A/S/D move, Q/E down/up, mouse (hold the left button) looks,
+//! Keys: W/A/S/D move, Q/E down/up, mouse (hold the middle button) looks,
 //! Shift ×10 speed, O jumps between orbit and the surface, 1–6 debug views
 //! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours),
-//! Esc quits. Speed scales with
-//! altitude.
+//! Esc quits. Speed scales with altitude. Left click digs out the voxel at
+//! the centre of the window, right click places one against it (M cycles
+//! the material); with `--world` every edit is saved at once.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -20,8 +21,8 @@ use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png}
 use nebula_demo::planet_settings;
 use nebula_lod::LodSettings;
 use nebula_math::DVec3;
-use nebula_voxel::VoxelSource;
-use nebula_world::World;
+use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
+use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -223,7 +224,6 @@ fn run(args: Args) -> anyhow::Result<()> {
         }
         None => {}
     }
-    let planet = world.into_source();
     let default_eye = DVec3::new(0.35, 0.55, 0.76).normalize() * args.radius * 2.6;
     let shot = Shot {
         position: args.camera_pos.unwrap_or(default_eye),
@@ -238,18 +238,15 @@ fn run(args: Args) -> anyhow::Result<()> {
     };
     shot_view(&shot)?;
     if let Some(path) = &args.flight {
-        return flight(planet, &shot, path, &args);
+        return flight(world.voxels(), &shot, path, &args);
     }
-    if args.headless {
-        return headless(planet, &shot, &args);
-    }
-    match EventLoop::new() {
-        Ok(event_loop) => windowed(event_loop, planet, shot, draw_options(&args)),
-        Err(error) => {
-            eprintln!("nebula-demo: no display ({error}); rendering headless instead");
-            headless(planet, &shot, &args)
+    if !args.headless {
+        match EventLoop::new() {
+            Ok(event_loop) => return windowed(event_loop, world, shot, draw_options(&args)),
+            Err(error) => eprintln!("nebula-demo: no display ({error}); rendering headless instead"),
         }
     }
+    headless(world.voxels(), &shot, &args)
 }
 
 fn info(world: &World, json: bool) -> anyhow::Result<()> {
@@ -303,9 +300,9 @@ fn draw_options(args: &Args) -> DrawOptions {
     DrawOptions { skirts: !args.no_skirts, morph: args.morph }
 }
 
-fn headless(planet: PlanetVoxels, shot: &Shot, args: &Args) -> anyhow::Result<()> {
+fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = nebula_demo::headless::headless_gpu()?;
-    let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    let mut app = PlanetApp::with_voxels(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     if args.screenshot.is_none() && args.camera_pos.is_none() {
         // No camera given: an orbit-to-surface sequence.
@@ -343,11 +340,11 @@ fn headless(planet: PlanetVoxels, shot: &Shot, args: &Args) -> anyhow::Result<()
     Ok(())
 }
 
-fn flight(planet: PlanetVoxels, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
+fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
     let gpu = nebula_demo::headless::headless_gpu()?;
-    let mut app = PlanetApp::new(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    let mut app = PlanetApp::with_voxels(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     let report = nebula_demo::flight::fly(&mut app, &flight, shot, args.fps, args.frames_dir.as_deref())?;
     let json = report.json();
@@ -368,9 +365,17 @@ fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
     app.world.resource::<nebula_demo::app::Planet>().0.base().surface_point(dir).length()
 }
 
+/// How far a click reaches, metres.
+const EDIT_REACH: f64 = 200.0;
+
 /// The windowed demo.
 struct Windowed {
-    planet: Option<PlanetVoxels>,
+    /// The planet and its edits; clicks edit it and save to its file.
+    world: World,
+    /// What a right click places.
+    material: Voxel,
+    /// The voxel under the crosshair (the window's centre), if any.
+    picked: Option<VoxelHit>,
     options: DrawOptions,
     shot: Shot,
     state: Option<WindowState>,
@@ -392,10 +397,12 @@ struct WindowState {
     app: PlanetApp,
 }
 
-fn windowed(event_loop: EventLoop<()>, planet: PlanetVoxels, shot: Shot, options: DrawOptions) -> anyhow::Result<()> {
+fn windowed(event_loop: EventLoop<()>, world: World, shot: Shot, options: DrawOptions) -> anyhow::Result<()> {
     let forward = (shot.look_at - shot.position).normalize();
     let mut demo = Windowed {
-        planet: Some(planet),
+        world,
+        material: Voxel::STONE,
+        picked: None,
         options,
         eye: shot.position,
         yaw: 0.0,
@@ -439,6 +446,29 @@ impl Windowed {
         self.yaw = forward.dot(east).atan2(forward.dot(north));
     }
 
+    /// Digs out (`dig`) the voxel under the crosshair, or places the
+    /// current material against the side looked at; saved at once.
+    fn edit_at_crosshair(&mut self, dig: bool) {
+        let Some(hit) = self.picked else { return };
+        let edit = match (dig, hit.before) {
+            (true, _) => Edit::Voxel { at: hit.voxel, voxel: Voxel::AIR },
+            (false, Some(at)) => Edit::Voxel { at, voxel: self.material },
+            (false, None) => return,
+        };
+        let applied = match self.world.apply(&[edit]) {
+            Ok(applied) => applied,
+            Err(error) => {
+                eprintln!("nebula-demo: the edit failed: {error}");
+                return;
+            }
+        };
+        if let Some(state) = self.state.as_mut()
+            && let Err(error) = state.app.set_voxels(self.world.voxels(), &applied.dirty)
+        {
+            eprintln!("nebula-demo: showing the edit failed: {error:#}");
+        }
+    }
+
     fn frame(&mut self) -> anyhow::Result<()> {
         let dt = self.last.elapsed().as_secs_f64().min(0.1);
         self.last = Instant::now();
@@ -466,6 +496,9 @@ impl Windowed {
         if next.length() > min_radius + 0.5 {
             self.eye = next;
         }
+        // What a click would edit: the first solid voxel at the crosshair,
+        // within reach.
+        self.picked = self.world.pick(self.eye, forward, EDIT_REACH).unwrap_or(None);
         let size = (state.config.width, state.config.height);
         state.app.set_view(View {
             camera: camera(self.eye, forward, up, f64::from(size.0) / f64::from(size.1.max(1))),
@@ -489,15 +522,25 @@ impl Windowed {
             let ms = self.frame_clock.elapsed().as_secs_f64() * 1e3 / f64::from(self.frames.max(1));
             let lods: Vec<usize> =
                 f.lod_histogram.iter().enumerate().filter(|(_, n)| **n > 0).map(|(l, _)| l).collect();
+            let picked = self.picked.map_or_else(
+                || "nothing in reach".to_owned(),
+                |hit| {
+                    format!(
+                        "{:?} {} {} {} at {:.1} m",
+                        hit.voxel.face, hit.voxel.i, hit.voxel.j, hit.voxel.h, hit.distance
+                    )
+                },
+            );
             state.window.set_title(&format!(
-                "Nebula — {ms:.1} ms/frame, {} chunks, {} tris, queue {}, LOD {:?}..{:?}, alt {:.0} m, {:?}",
+                "Nebula — {ms:.1} ms/frame, {} chunks, {} tris, queue {}, LOD {:?}..{:?}, alt {:.0} m, {:?} | {picked} | places {}",
                 f.chunks,
                 f.triangles,
                 f.jobs_in_flight,
                 lods.first(),
                 lods.last(),
                 altitude,
-                self.view
+                self.view,
+                self.material.name().unwrap_or("?"),
             ));
             self.frames = 0;
             self.frame_clock = Instant::now();
@@ -512,7 +555,7 @@ impl ApplicationHandler for Windowed {
         if self.state.is_some() {
             return;
         }
-        let Some(planet) = self.planet.take() else { return };
+        let planet = self.world.voxels();
         let result = (|| -> anyhow::Result<WindowState> {
             let attributes = Window::default_attributes()
                 .with_title("Nebula")
@@ -524,7 +567,7 @@ impl ApplicationHandler for Windowed {
             let size = window.inner_size();
             let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
             surface.configure(&gpu.device, &config);
-            let mut app = PlanetApp::new(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
+            let mut app = PlanetApp::with_voxels(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
             app.set_draw_options(self.options);
             Ok(WindowState { window, surface, config, app })
         })();
@@ -562,6 +605,12 @@ impl ApplicationHandler for Windowed {
                         KeyCode::Digit4 => self.view = DebugView::Morph,
                         KeyCode::Digit5 => self.view = DebugView::Wireframe,
                         KeyCode::Digit6 => self.view = DebugView::Chunks,
+                        KeyCode::KeyM => {
+                            let solid: Vec<Voxel> =
+                                Voxel::NAMED.iter().map(|&(_, v)| v).filter(|v| v.is_solid()).collect();
+                            let next = solid.iter().position(|&v| v == self.material).map_or(0, |n| n + 1);
+                            self.material = solid[next % solid.len()];
+                        }
                         KeyCode::KeyO => {
                             let r = self.eye.length();
                             let radius = self.shot.position.length().max(r);
@@ -576,8 +625,14 @@ impl ApplicationHandler for Windowed {
                     self.keys.remove(&code);
                 }
             }
-            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+            WindowEvent::MouseInput { state, button: MouseButton::Middle, .. } => {
                 self.looking = state == ElementState::Pressed;
+            }
+            WindowEvent::MouseInput { state: ElementState::Pressed, button: MouseButton::Left, .. } => {
+                self.edit_at_crosshair(true);
+            }
+            WindowEvent::MouseInput { state: ElementState::Pressed, button: MouseButton::Right, .. } => {
+                self.edit_at_crosshair(false);
             }
             WindowEvent::RedrawRequested => {
                 if let Err(error) = self.frame() {

@@ -25,7 +25,9 @@ use crate::{
 use ndshape::ConstShape;
 
 /// A [`VoxelSource`] with LOD-0 edits on top (see the module docs).
-#[derive(Debug)]
+/// Cloning copies the edits (and clones the base: a `ProceduralPlanet`
+/// clone starts with an empty height cache).
+#[derive(Clone, Debug)]
 pub struct EditedSource<S> {
     base: S,
     /// LOD-0 voxels that differ from `base`.

@@ -49,6 +49,7 @@ mod store;
 
 use std::collections::BTreeSet;
 use std::path::Path;
+use std::sync::Arc;
 
 use nebula_math::DVec3;
 use nebula_voxel::{
@@ -102,7 +103,9 @@ pub struct Applied {
 /// A planet with edits, saved to a file when opened with one.
 #[derive(Debug)]
 pub struct World<S = ProceduralPlanet> {
-    source: EditedSource<S>,
+    /// Shared with renderers and meshing jobs ([`World::voxels`]); an edit
+    /// copies it only while such a snapshot is alive.
+    source: Arc<EditedSource<S>>,
     store: Option<WorldStore>,
     /// LOD-0 chunks edited but not yet saved (after a failed save).
     unsaved: BTreeSet<ChunkKey>,
@@ -121,7 +124,7 @@ impl World<ProceduralPlanet> {
     }
 }
 
-impl<S: VoxelSource> World<S> {
+impl<S: VoxelSource + Clone> World<S> {
     /// Any voxel source with the edits saved at `path`; `planet` names the
     /// source's terrain (it must change whenever the terrain would), so a
     /// file is never replayed onto another planet.
@@ -144,7 +147,7 @@ impl<S: VoxelSource> World<S> {
                 Some(store)
             }
         };
-        Ok(Self { source, store, unsaved: BTreeSet::new() })
+        Ok(Self { source: Arc::new(source), store, unsaved: BTreeSet::new() })
     }
 
     /// The voxels with every edit applied: what meshing, picking and
@@ -153,10 +156,11 @@ impl<S: VoxelSource> World<S> {
         &self.source
     }
 
-    /// The voxels with every edit applied, for a renderer that takes them
-    /// over (the file is closed; edits made so far are saved).
-    pub fn into_source(self) -> EditedSource<S> {
-        self.source
+    /// A snapshot of the voxels with every edit so far, to hand to meshing
+    /// threads: it stays as it is while the world goes on changing (the
+    /// next edit copies the voxels while a snapshot is alive).
+    pub fn voxels(&self) -> Arc<EditedSource<S>> {
+        self.source.clone()
     }
 
     /// The world file, if any.
@@ -175,7 +179,7 @@ impl<S: VoxelSource> World<S> {
     /// # Errors
     /// [`WorldError::Voxel`] for a NaN, infinite or zero ray.
     pub fn pick(&self, origin: DVec3, direction: DVec3, max_distance: f64) -> Result<Option<VoxelHit>, WorldError> {
-        Ok(pick(&self.source, origin, direction, max_distance)?)
+        Ok(pick(&*self.source, origin, direction, max_distance)?)
     }
 
     /// Applies `edits` in order and saves them as one transaction. Returns
@@ -189,11 +193,12 @@ impl<S: VoxelSource> World<S> {
     pub fn apply(&mut self, edits: &[Edit]) -> Result<Applied, WorldError> {
         let mut dirty = BTreeSet::new();
         let mut failure = None;
+        let source = Arc::make_mut(&mut self.source);
         for edit in edits {
             let result = match *edit {
-                Edit::Voxel { at, voxel } => self.source.set_voxel(at, voxel),
-                Edit::Sphere { center, radius, voxel } => self.source.fill_sphere(center, radius, voxel),
-                Edit::Box { min, max, voxel } => self.source.fill_box(min, max, voxel),
+                Edit::Voxel { at, voxel } => source.set_voxel(at, voxel),
+                Edit::Sphere { center, radius, voxel } => source.fill_sphere(center, radius, voxel),
+                Edit::Box { min, max, voxel } => source.fill_box(min, max, voxel),
             };
             match result {
                 Ok(keys) => dirty.extend(keys),
