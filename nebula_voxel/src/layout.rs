@@ -232,6 +232,28 @@ impl ChunkLayout {
         Ok(())
     }
 
+    /// The LOD-0 voxel that holds world point `point` (planet centre at the
+    /// origin): the cell its direction falls in and the layer its radius
+    /// falls in. Points on a cell wall go to the cell above the wall.
+    ///
+    /// # Errors
+    /// [`VoxelError::Math`] for NaN, infinite or centre points,
+    /// [`VoxelError::VoxelOutOfRange`] beyond the radial range.
+    pub fn voxel_at(&self, point: DVec3) -> Result<VoxelCoord, VoxelError> {
+        let (face, fi, fj) = self.sphere.face_coords_of(point)?;
+        let last = f64::from(self.voxels_per_edge(0) - 1);
+        let h = self.sphere.radius_to_layer(point.length()).floor();
+        let at = VoxelCoord {
+            face,
+            lod: 0,
+            i: fi.floor().clamp(0.0, last) as u32,
+            j: fj.floor().clamp(0.0, last) as u32,
+            h: h.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32,
+        };
+        self.check_voxel(at)?;
+        Ok(at)
+    }
+
     /// The chunk that contains voxel `at` (at the voxel's LOD).
     #[must_use]
     pub fn chunk_of(&self, at: VoxelCoord) -> ChunkKey {

@@ -93,7 +93,6 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
 
     fn run(mut self) -> Result<Option<VoxelHit>, VoxelError> {
         let layout = *self.source.layout();
-        let sphere = layout.sphere();
         // Start where the ray enters the highest terrain (every face root's
         // bounds), or at the origin when it is below that already.
         let mut top = f64::NEG_INFINITY;
@@ -108,10 +107,8 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
                 None => return Ok(None),
             }
         }
-        let start = self.at(t);
-        let (face, fi, fj) = sphere.face_coords_of(start)?;
-        let clamp = |x: f64| (x.floor() as i64).clamp(0, self.per_edge - 1);
-        let mut cell = (face, clamp(fi), clamp(fj), sphere.radius_to_layer(start.length()).floor() as i64);
+        let start = layout.voxel_at(self.at(t))?;
+        let mut cell = (start.face, i64::from(start.i), i64::from(start.j), i64::from(start.h));
         let mut entered: Option<Wall> = None;
         let mut before = None;
         while t <= self.max_distance {

@@ -363,16 +363,10 @@ fn pick_by_sampling(
     max: f64,
     step: f64,
 ) -> Option<(VoxelCoord, f64)> {
-    let sphere = source.layout().sphere();
-    let per_edge = i64::from(source.layout().voxels_per_edge(0));
     let mut last = None;
     let mut t = 0.0;
     while t <= max {
-        let p = origin + dir * t;
-        let (face, fi, fj) = sphere.face_coords_of(p).unwrap();
-        let clamp = |x: f64| (x.floor() as i64).clamp(0, per_edge - 1) as u32;
-        let h = sphere.radius_to_layer(p.length()).floor() as i32;
-        let at = VoxelCoord { face, lod: 0, i: clamp(fi), j: clamp(fj), h };
+        let at = source.layout().voxel_at(origin + dir * t).unwrap();
         if last != Some(at) {
             if source.voxel(at).unwrap().is_solid() {
                 return Some((at, t));

@@ -17,6 +17,9 @@
 //! - **Per-chunk diffs**: one value per LOD-0 chunk holding that chunk's
 //!   edited voxels (3 bytes each), keyed by the chunk; coarse LODs are
 //!   derived from LOD 0 by the planet's far-corner rule, never stored.
+//! - **Walking** ([`walk`]): bodies are upright boxes in the local
+//!   east/north/up frame, moved axis by axis against the solid voxels'
+//!   boxes in that frame, as block games do.
 //! - **Refuse, never repair, what is not ours**: a corrupted file, another
 //!   format version or another planet's world is reported as a
 //!   [`WorldError`] and left untouched.
@@ -46,6 +49,7 @@
 
 mod error;
 mod store;
+pub mod walk;
 
 use std::collections::BTreeSet;
 use std::path::Path;

@@ -219,3 +219,167 @@ proptest::proptest! {
         }
     }
 }
+
+mod walking {
+    use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, Voxel, VoxelSource};
+
+    use crate::walk::{Body, Walker, ground_below, is_solid, local_frame, move_body};
+    use crate::{Edit, World};
+
+    fn unit(state: &mut u64) -> f64 {
+        super::unit(state)
+    }
+
+    /// How deep `body` overlaps the nearest solid voxel's local box on its
+    /// least-overlapping axis (≤ 0: not inside any block).
+    fn deepest_overlap<S: VoxelSource + ?Sized>(source: &S, body: Body) -> f64 {
+        let (east, north, up) = local_frame(body.feet).unwrap();
+        let layout = source.layout();
+        let sphere = layout.sphere();
+        let centre = layout.voxel_at(body.feet + up * body.height * 0.5).unwrap();
+        let low = [-body.half_width, -body.half_width, 0.0];
+        let high = [body.half_width, body.half_width, body.height];
+        let per_edge = i64::from(layout.voxels_per_edge(0));
+        let mut worst = f64::NEG_INFINITY;
+        for di in -4i64..=4 {
+            for dj in -4i64..=4 {
+                let Some((face, i, j)) =
+                    centre.face.wrap_cell(i64::from(centre.i) + di, i64::from(centre.j) + dj, per_edge)
+                else {
+                    continue;
+                };
+                for dh in -4i64..=4 {
+                    let h = i64::from(centre.h) + dh;
+                    let at = nebula_voxel::VoxelCoord { face, lod: 0, i: i as u32, j: j as u32, h: h as i32 };
+                    if !source.voxel(at).unwrap().is_solid() {
+                        continue;
+                    }
+                    let mut overlap = f64::INFINITY;
+                    for (k, axis) in [east, north, up].iter().enumerate() {
+                        let mut span = (f64::INFINITY, f64::NEG_INFINITY);
+                        for (a, b, r) in
+                            [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0), (0, 0, 1), (1, 0, 1), (0, 1, 1), (1, 1, 1)]
+                        {
+                            let p = sphere.direction(face, (i + a) as f64, (j + b) as f64)
+                                * sphere.layer_radius((h + r) as f64);
+                            let x = (p - body.feet).dot(*axis);
+                            span = (span.0.min(x), span.1.max(x));
+                        }
+                        overlap = overlap.min(span.1.min(high[k]) - span.0.max(low[k]));
+                    }
+                    worst = worst.max(overlap);
+                }
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn a_dropped_walker_lands_on_the_ground_and_stays_out_of_blocks() {
+        for planet in [
+            ProceduralPlanet::new(PlanetSettings::small(3)).unwrap(),
+            ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap(),
+        ] {
+            let size = planet.voxel_size();
+            let mut state = 0x1a_u64;
+            for _ in 0..6 {
+                let up = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5).normalize();
+                let mut walker = Walker::new(planet.surface_point(up) + up * 3.0);
+                for _ in 0..120 {
+                    walker.step(&planet, 1.0 / 60.0, DVec3::ZERO, None).unwrap();
+                }
+                assert!(walker.on_ground, "a walker dropped 3 m is not standing after 2 s");
+                let ground = ground_below(&planet, walker.body.feet + up * 0.5, 10.0).unwrap().expect("ground");
+                let height = walker.body.feet.length() - ground.point.length();
+                assert!(height.abs() < 0.03 * size, "feet {height} m over the top of the ground voxel");
+                assert!(!is_solid(&planet, walker.body.feet + up * 0.05 * size).unwrap());
+                assert!(deepest_overlap(&planet, walker.body) <= 0.02 * size);
+            }
+        }
+    }
+
+    #[test]
+    fn walls_stop_a_walker_and_random_walks_never_enter_a_block() {
+        // A wall of stone built in front of the walker stops it; then random
+        // walks and jumps (small planet and Earth, across a cube edge too)
+        // never leave the body inside a block deeper than the contact
+        // tolerance. The control moves the same way with no collision and
+        // must end up inside the ground.
+        let mut state = 0x3a11_u64;
+        for settings in [PlanetSettings::small(3), PlanetSettings::earth(11)] {
+            let mut world = World::open(settings, None).unwrap();
+            let planet = world.source().base().clone();
+            let size = planet.voxel_size();
+            let up = DVec3::new(1.0, 1.0, 0.02).normalize();
+            let (east, _, _) = local_frame(up).unwrap();
+            // Spawned in the air (the smooth surface point can be inside a
+            // voxel that sticks up) and left to land.
+            let mut lander = Walker::new(planet.surface_point(up) + up * 3.0);
+            for _ in 0..120 {
+                lander.step(&planet, 1.0 / 60.0, DVec3::ZERO, None).unwrap();
+            }
+            assert!(lander.on_ground);
+            let feet = lander.body.feet;
+            let wall = feet + east * 4.0 * size + up * 2.0 * size;
+            world
+                .apply(&[Edit::Box {
+                    min: wall - DVec3::splat(1.5 * size),
+                    max: wall + DVec3::splat(1.5 * size),
+                    voxel: Voxel::STONE,
+                }])
+                .unwrap();
+            let source = world.voxels();
+            let mut walker = Walker { step_up: 1.05 * size, ..Walker::new(feet) };
+            for _ in 0..240 {
+                walker.step(&*source, 1.0 / 60.0, east * 4.0, None).unwrap();
+            }
+            let walked = (walker.body.feet - feet).dot(east);
+            assert!(walked < 4.0 * size && walked > size, "walked {walked} m towards a wall 4 voxels away");
+            assert!(deepest_overlap(&*source, walker.body) <= 0.02 * size);
+
+            // Random walks over a cube edge (+X/+Y here).
+            for _ in 0..4 {
+                let mut walker = Walker { step_up: 1.05 * size, ..lander };
+                let mut worst = f64::NEG_INFINITY;
+                for step in 0..300 {
+                    if step % 30 == 0 {
+                        let (e, n, _) = local_frame(walker.body.feet).unwrap();
+                        let angle = unit(&mut state) * std::f64::consts::TAU;
+                        let speed = 2.0 + unit(&mut state) * 6.0;
+                        let heading = (e * angle.cos() + n * angle.sin()) * speed;
+                        let jump = (unit(&mut state) < 0.5).then_some(5.0);
+                        walker.step(&*source, 1.0 / 60.0, heading, jump).unwrap();
+                    }
+                    let (e, n, _) = local_frame(walker.body.feet).unwrap();
+                    let heading = e * (step as f64 * 0.05).cos() * 5.0 + n * (step as f64 * 0.05).sin() * 5.0;
+                    walker.step(&*source, 1.0 / 60.0, heading, None).unwrap();
+                    worst = worst.max(deepest_overlap(&*source, walker.body));
+                }
+                assert!(worst <= 0.02 * size, "a walk entered a block {worst} m deep");
+            }
+            // Control: the same fall with no collision sinks into the ground.
+            let mut ghost = Walker::new(feet);
+            for _ in 0..60 {
+                ghost.vertical_speed -= crate::walk::GRAVITY / 60.0;
+                ghost.body.feet += up * ghost.vertical_speed / 60.0;
+            }
+            assert!(
+                deepest_overlap(&*source, ghost.body) > 0.1 * size,
+                "the overlap check cannot see a body in the ground"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_motion_is_an_error() {
+        let planet = ProceduralPlanet::new(PlanetSettings::small(3)).unwrap();
+        let feet = planet.surface_point(DVec3::Y) + DVec3::Y;
+        let body = Body { feet, half_width: 0.3, height: 1.8 };
+        assert!(move_body(&planet, body, DVec3::NAN).is_err());
+        assert!(move_body(&planet, Body { half_width: f64::INFINITY, ..body }, DVec3::ZERO).is_err());
+        assert!(move_body(&planet, Body { height: 100.0, ..body }, DVec3::ZERO).is_err());
+        assert!(Walker::new(feet).step(&planet, 5.0, DVec3::ZERO, None).is_err());
+        assert!(Walker::new(feet).step(&planet, f64::NAN, DVec3::ZERO, None).is_err());
+        assert!(local_frame(DVec3::ZERO).is_err());
+    }
+}
