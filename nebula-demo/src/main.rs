@@ -6,7 +6,9 @@
 //! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours),
 //! Esc quits. Speed scales with altitude. Left click digs out the voxel at
 //! the centre of the window, right click places one against it (M cycles
-//! the material); with `--world` every edit is saved at once.
+//! the material); with `--world` every edit is saved at once. G switches
+//! between flying and walking (gravity, Space jumps, one-block ledges are
+//! climbed).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -22,6 +24,7 @@ use nebula_demo::planet_settings;
 use nebula_lod::LodSettings;
 use nebula_math::DVec3;
 use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
+use nebula_world::walk::Walker;
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
@@ -376,6 +379,8 @@ struct Windowed {
     material: Voxel,
     /// The voxel under the crosshair (the window's centre), if any.
     picked: Option<VoxelHit>,
+    /// Walking instead of flying (G toggles).
+    walker: Option<Walker>,
     options: DrawOptions,
     shot: Shot,
     state: Option<WindowState>,
@@ -403,6 +408,7 @@ fn windowed(event_loop: EventLoop<()>, world: World, shot: Shot, options: DrawOp
         world,
         material: Voxel::STONE,
         picked: None,
+        walker: None,
         options,
         eye: shot.position,
         yaw: 0.0,
@@ -492,9 +498,28 @@ impl Windowed {
                 motion += dir;
             }
         }
-        let next = self.eye + motion.normalize_or_zero() * speed * dt;
-        if next.length() > min_radius + 0.5 {
-            self.eye = next;
+        if let Some(walker) = self.walker.as_mut() {
+            // Walking: W/A/S/D along the ground at 5 m/s (Shift ×3), Space
+            // jumps, gravity towards the centre; ledges of one block are
+            // climbed.
+            let horizontal = motion - up * motion.dot(up);
+            let pace = if fast { 15.0 } else { 5.0 };
+            let jump = self.keys.contains(&KeyCode::Space).then_some(5.0);
+            match walker
+                .step(self.world.source(), dt, horizontal.normalize_or_zero() * pace, jump)
+                .and_then(|()| walker.eye())
+            {
+                Ok(eye) => self.eye = eye,
+                Err(error) => {
+                    eprintln!("nebula-demo: walking failed, flying instead: {error}");
+                    self.walker = None;
+                }
+            }
+        } else {
+            let next = self.eye + motion.normalize_or_zero() * speed * dt;
+            if next.length() > min_radius + 0.5 {
+                self.eye = next;
+            }
         }
         // What a click would edit: the first solid voxel at the crosshair,
         // within reach.
@@ -605,6 +630,16 @@ impl ApplicationHandler for Windowed {
                         KeyCode::Digit4 => self.view = DebugView::Morph,
                         KeyCode::Digit5 => self.view = DebugView::Wireframe,
                         KeyCode::Digit6 => self.view = DebugView::Chunks,
+                        KeyCode::KeyG => {
+                            self.walker = match self.walker {
+                                Some(_) => None,
+                                None => {
+                                    let up = self.eye.normalize();
+                                    let voxel = self.world.source().base().voxel_size();
+                                    Some(Walker { step_up: voxel * 1.02, ..Walker::new(self.eye - up * 1.6) })
+                                }
+                            };
+                        }
                         KeyCode::KeyM => {
                             let solid: Vec<Voxel> =
                                 Voxel::NAMED.iter().map(|&(_, v)| v).filter(|v| v.is_solid()).collect();
@@ -612,6 +647,7 @@ impl ApplicationHandler for Windowed {
                             self.material = solid[next % solid.len()];
                         }
                         KeyCode::KeyO => {
+                            self.walker = None;
                             let r = self.eye.length();
                             let radius = self.shot.position.length().max(r);
                             let up = self.eye.normalize();
