@@ -31,7 +31,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 use rayon::prelude::*;
 
-use crate::app::CpuMesh;
+use nebula_meshing::RenderMesh;
 
 /// How far inside a triangle, in pixels, a ray must pass for its hit to
 /// count: well above the rasteriser's f32 rounding, far below a pixel.
@@ -59,7 +59,7 @@ pub struct CrackCount {
 /// What a frame drew, as the oracle needs it.
 pub struct DrawnGeometry<'a> {
     /// The meshes drawn with their per-chunk draw constants.
-    pub drawn: Vec<(&'a CpuMesh, ChunkDraw)>,
+    pub drawn: Vec<(&'a RenderMesh, ChunkDraw)>,
     /// The shader's frame constants.
     pub frame: FrameDraw,
     /// The lowest surface radius under the drawn chunks.
@@ -131,7 +131,7 @@ struct ChunkTriangles {
 /// triangle along the ray is tested exactly, and the ray stops at the
 /// first robust hit.
 fn geometry_hits(
-    drawn: &[(&CpuMesh, ChunkDraw)],
+    drawn: &[(&RenderMesh, ChunkDraw)],
     frame: &FrameDraw,
     candidates: &[u32],
     ray: &(impl Fn(u32) -> DVec3 + Sync),

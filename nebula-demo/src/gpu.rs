@@ -7,8 +7,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
 use nebula_meshing::{ChunkDraw, RenderVertex, split_high_low};
 
-use crate::app::{CpuMesh, drawn_ranges};
 use crate::arena::{MeshArena, Slot};
+use nebula_meshing::{RenderMesh, drawn_ranges};
 
 /// The colour format of the offscreen target: plain UNORM, so the clear
 /// colour is stored exactly (the shader encodes sRGB itself).
@@ -78,6 +78,12 @@ pub struct GpuMesh {
     pub id: u32,
     /// Bytes of its vertices and indices in the arena.
     pub bytes: u64,
+}
+
+impl nebula_world::stream::MeshHandle for GpuMesh {
+    fn bytes(&self) -> u64 {
+        self.bytes
+    }
 }
 
 /// What a frame draws: the view and the per-frame constants.
@@ -290,7 +296,7 @@ impl Gpu {
     /// Uploads a chunk mesh into the mesh arena; `key_id` colours the chunk
     /// view.
     #[must_use]
-    pub fn upload(&self, mesh: &CpuMesh, lod: u8, key_id: u32) -> GpuMesh {
+    pub fn upload(&self, mesh: &RenderMesh, lod: u8, key_id: u32) -> GpuMesh {
         let slot = self.arena.upload(&self.device, &self.queue, &mesh.vertices, &mesh.indices);
         GpuMesh {
             slot,

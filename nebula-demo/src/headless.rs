@@ -9,7 +9,7 @@ use nebula_lod::LodSettings;
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
-use crate::app::{DrawList, FrameFigures, PlanetApp, View, camera};
+use crate::app::{FrameFigures, PlanetApp, View, camera};
 use crate::crack::CrackCount;
 use crate::gpu::{DebugView, Gpu, GpuError, Offscreen};
 
@@ -90,6 +90,9 @@ pub struct Figures {
     pub draw_ms: f64,
     /// Milliseconds the crack oracle took.
     pub check_ms: f64,
+    /// Bytes of the GPU buffers holding the meshes (arena pages, used or
+    /// not).
+    pub gpu_buffer_bytes: u64,
 }
 
 /// The first frame is drawn once no visible leaf is stood in for by an
@@ -163,7 +166,7 @@ pub fn prime(app: &mut PlanetApp) -> anyhow::Result<f64> {
     loop {
         let step_started = Instant::now();
         app.step();
-        let list = app.world.resource::<DrawList>();
+        let list = app.draw_list();
         if list.holes == 0 && list.max_stand_in_levels <= MAX_FIRST_FRAME_LEVELS {
             return Ok(started.elapsed().as_secs_f64() * 1e3);
         }
@@ -255,6 +258,7 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
             cracks,
             draw_ms,
             check_ms: started.elapsed().as_secs_f64() * 1e3,
+            gpu_buffer_bytes: app.gpu().mesh_buffer_bytes(),
             ..Figures::default()
         },
         rgba,
@@ -301,8 +305,8 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "crack_check_ms": figures.check_ms,
         "chunks": f.chunks,
         "chunks_held": f.chunks_held,
-        "gpu_mesh_bytes": f.gpu_bytes,
-        "gpu_mesh_buffer_bytes": f.gpu_buffer_bytes,
+        "gpu_mesh_bytes": f.renderer_bytes,
+        "gpu_mesh_buffer_bytes": figures.gpu_buffer_bytes,
         "mesh_bytes_held": f.held_bytes,
         "triangles": f.triangles,
         "skirt_triangles": f.skirt_triangles,

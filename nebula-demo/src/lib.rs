@@ -20,6 +20,10 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+// The ECS resource holding the streamer proves `Sync` through wgpu-core's
+// deeply nested types, past the default trait-solver depth of 128.
+#![recursion_limit = "256"]
+
 pub mod app;
 pub mod arena;
 pub mod commands;

@@ -99,8 +99,8 @@ struct Args {
     frames_dir: Option<PathBuf>,
     /// What drives the geomorph (for debugging; `own` is the first
     /// version's rule, which draws LOD 0 fully morphed).
-    #[arg(long, value_enum, default_value_t = MorphRule::Parent)]
-    morph: MorphRule,
+    #[arg(long, value_enum, default_value_t = MorphArg::Parent)]
+    morph: MorphArg,
     /// Draw LOD seams without skirts (for debugging: they open).
     #[arg(long)]
     no_skirts: bool,
@@ -108,6 +108,27 @@ struct Args {
     /// edited; `edit` saves into it.
     #[arg(long, value_name = "PATH")]
     world: Option<PathBuf>,
+}
+
+/// What drives the geomorph (`nebula_world::stream::MorphRule`).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum MorphArg {
+    /// The projected error of the LOD a chunk merges into.
+    Parent,
+    /// The chunk's own error bound (the first version's rule).
+    Own,
+    /// No geomorphing.
+    Off,
+}
+
+impl From<MorphArg> for MorphRule {
+    fn from(arg: MorphArg) -> Self {
+        match arg {
+            MorphArg::Parent => MorphRule::Parent,
+            MorphArg::Own => MorphRule::Own,
+            MorphArg::Off => MorphRule::Off,
+        }
+    }
 }
 
 #[derive(Subcommand, Debug)]
@@ -300,7 +321,7 @@ fn lod_settings(shot: &Shot) -> LodSettings {
 }
 
 fn draw_options(args: &Args) -> DrawOptions {
-    DrawOptions { skirts: !args.no_skirts, morph: args.morph }
+    DrawOptions { skirts: !args.no_skirts, morph: args.morph.into() }
 }
 
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
@@ -365,7 +386,7 @@ fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: 
 }
 
 fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
-    app.world.resource::<nebula_demo::app::Planet>().0.base().surface_point(dir).length()
+    app.streamer().voxels().base().surface_point(dir).length()
 }
 
 /// How far a click reaches, metres.

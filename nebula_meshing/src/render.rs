@@ -196,7 +196,77 @@ pub fn vertex_morph_factor(frame: &FrameDraw, chunk: &ChunkDraw, distance: f64) 
     morph_factor(rho / frame.threshold_px)
 }
 
+/// A chunk mesh in the form a renderer uploads: [`RenderVertex`]es, a
+/// triangle list (the surface first, then each side's skirt) and where
+/// each part starts, so a renderer draws the surface and only the skirts a
+/// frame lowers ([`drawn_ranges`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderMesh {
+    /// Vertices as uploaded.
+    pub vertices: Vec<RenderVertex>,
+    /// Triangle list: the surface, then each side's skirt.
+    pub indices: Vec<u32>,
+    /// `indices[..surface_indices]` is the surface.
+    pub surface_indices: usize,
+    /// Index range of each side's skirt (as in `FaceDirection::HORIZONTAL`).
+    pub skirt_ranges: [std::ops::Range<usize>; 4],
+}
+
+impl RenderMesh {
+    /// Bytes of its vertices and indices.
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        (size_of_val(self.vertices.as_slice()) + size_of_val(self.indices.as_slice())) as u64
+    }
+
+    /// The index ranges drawn with `draw`: the surface and the skirts of
+    /// the sides lowered.
+    #[must_use]
+    pub fn drawn_ranges(&self, draw: &ChunkDraw) -> Vec<std::ops::Range<usize>> {
+        drawn_ranges(self.surface_indices, &self.skirt_ranges, draw)
+    }
+
+    /// Triangles of the surface, and of each side's skirt.
+    #[must_use]
+    pub fn triangle_counts(&self) -> (usize, [usize; 4]) {
+        (self.surface_indices / 3, self.skirt_ranges.clone().map(|r| r.len() / 3))
+    }
+}
+
+/// The surface range and the skirt ranges of the sides `draw` lowers,
+/// adjacent ranges merged.
+#[must_use]
+pub fn drawn_ranges(
+    surface: usize,
+    skirts: &[std::ops::Range<usize>; 4],
+    draw: &ChunkDraw,
+) -> Vec<std::ops::Range<usize>> {
+    let mut ranges = Vec::with_capacity(5);
+    ranges.push(0..surface);
+    for (range, depth) in skirts.iter().zip(draw.skirt_depths) {
+        if depth <= 0.0 || range.is_empty() {
+            continue;
+        }
+        match ranges.last_mut() {
+            Some(last) if last.end == range.start => last.end = range.end,
+            _ => ranges.push(range.clone()),
+        }
+    }
+    ranges
+}
+
 impl ChunkMesh {
+    /// The mesh in the form a renderer uploads.
+    #[must_use]
+    pub fn render_mesh(&self) -> RenderMesh {
+        RenderMesh {
+            vertices: self.render_vertices(),
+            indices: self.indices().to_vec(),
+            surface_indices: self.surface_triangle_count() * 3,
+            skirt_ranges: self.skirt_index_ranges(),
+        }
+    }
+
     /// The vertices in GPU form (see [`RenderVertex`]), in the order of
     /// [`ChunkMesh::vertices`], so [`ChunkMesh::indices`] index them.
     #[must_use]

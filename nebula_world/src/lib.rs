@@ -49,6 +49,7 @@
 
 mod error;
 mod store;
+pub mod stream;
 pub mod walk;
 
 use std::collections::BTreeSet;

@@ -101,7 +101,13 @@ fn check(name: &str, settings: &PlanetSettings, shot: &Shot, min_planet_fraction
 /// Flies `flight` (every frame checked), saves its frames' report, and
 /// asserts every frame is crack-free.
 fn check_flight(name: &str, settings: &PlanetSettings, flight: &Flight, fps: f64) -> FlightReport {
-    check_flight_in_budget(name, settings, flight, fps, nebula_demo::app::MeshCache::default_max_bytes())
+    check_flight_in_budget(
+        name,
+        settings,
+        flight,
+        fps,
+        nebula_demo::app::MeshCache::<nebula_demo::gpu::GpuMesh>::default_max_bytes(),
+    )
 }
 
 /// [`check_flight`] with the mesh cache held to `max_bytes`.
@@ -115,7 +121,7 @@ fn check_flight_in_budget(
     let first = flight.pose(0.0);
     let template = Shot { up: first.up, ..shot(first.pos, first.look_at, 60.0) };
     let mut app = app(settings, &template, DrawOptions::default());
-    app.world.resource_mut::<nebula_demo::app::MeshCache>().max_bytes = max_bytes;
+    app.streamer_mut().0.cache.max_bytes = max_bytes;
     let dir = folder().join(name);
     let report = fly(&mut app, flight, &template, fps, Some(&dir)).expect("flies");
     std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&report.json()).expect("json"))

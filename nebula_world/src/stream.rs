@@ -1,0 +1,938 @@
+//! Streaming: what to mesh, in what order, what to draw while it is not
+//! ready, and what to free — for any renderer.
+//!
+//! A game drives a [`Streamer`] once a frame with its camera and a function
+//! that uploads a finished mesh and returns the renderer's handle to it
+//! (a [`MeshHandle`]: dropping it frees the mesh). The streamer hands back
+//! what to draw ([`Streamer::drawn`]): each chunk's handle with its
+//! per-frame draw constants ([`ChunkDraw`]: the error it morphs towards and
+//! how deep to lower each side's skirt).
+//!
+//! # What is drawn: every frame complete, never waiting for meshing
+//!
+//! Meshes are made with [`MeshOptions::STREAMING`]: they do not depend on
+//! their neighbours' LODs (skirts hang on every side, and their depth is
+//! chosen per side at draw time from the LODs actually drawn next to the
+//! chunk). So any chunk may be shown the moment its column is meshed, and a
+//! LOD change never waits for neighbours to be re-meshed. Each frame:
+//!
+//! ```text
+//!   for each visible leaf L of the LOD tree:
+//!     L's column meshed            → draw L
+//!     else its 4 children meshed   → draw them (a merge not ready yet)
+//!     else nearest meshed ancestor → draw it instead (a split not ready yet);
+//!                                    leaves under a drawn ancestor are not drawn
+//!   skirt depth per side = skirt_depth(L, LOD drawn across that side)
+//! ```
+//!
+//! The six face roots are meshed before the first frame, so an ancestor
+//! always exists and no frame has a hole. Stand-ins are asked for every
+//! [`STAND_IN_LEVEL_STEP`] LODs above a leaf. Jobs go to a priority queue
+//! (largest projected voxel first, which is coarse-first and nearest-first),
+//! rebuilt every frame from what is wanted, so a chunk that left the view is
+//! never meshed (cancellation); workers on the streamer's own thread pool
+//! take the top job. Meshes are held within a chunk and a byte budget,
+//! least recently used freed first. Edits ([`Streamer::set_voxels`]) keep
+//! the old mesh of a chunk on screen until its new one is uploaded.
+
+use std::collections::{BinaryHeap, HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use nebula_lod::{Camera, LodError, LodSettings, LodTree, children, parent};
+use nebula_math::FaceDirection;
+use nebula_meshing::{
+    ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
+};
+use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, VoxelSource};
+
+/// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
+/// mesh (the streamer drops the handles of the meshes it frees).
+pub trait MeshHandle: Send + Sync + 'static {
+    /// Bytes the mesh takes in the renderer (for the memory budget).
+    fn bytes(&self) -> u64;
+}
+
+/// Meshes uploaded per frame at most: a long frame (or a burst of finished
+/// jobs) must not turn into one huge upload. Also the most results that
+/// wait for collection: workers block past it, so finished meshes cannot
+/// pile up in memory when frames are slow.
+pub const MAX_UPLOADS_PER_FRAME: usize = 512;
+
+/// Stand-ins for a leaf not meshed yet are meshed at every this many LODs
+/// above it (nearer ones are drawn if they happen to be meshed).
+///
+/// Every level costs about a third of the leaves' meshing again (the Earth
+/// view 1 km up: 10,194 chunks meshed for 7,296 drawn, settled in 10.0 s);
+/// every third level costs about 1/64 (7,563 meshed, 7.4 s), but once
+/// showed a one-pixel crack in a flight with stand-ins three LODs coarse
+/// next to leaves, not explained yet, so it stays 1.
+pub const STAND_IN_LEVEL_STEP: u8 = 1;
+
+/// What drives the geomorph factor μ of a chunk.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MorphRule {
+    /// The projected error of the LOD the chunk merges into (its parent's
+    /// voxel edge): LOD 0 near the camera is drawn exactly.
+    #[default]
+    Parent,
+    /// The chunk's own error bound, as the first version did (0 at LOD 0,
+    /// so LOD 0 is always drawn fully morphed): kept to show what the
+    /// morph checks catch.
+    Own,
+    /// No geomorphing: every chunk drawn as meshed.
+    Off,
+}
+
+/// Switches for what is drawn: for debugging and for showing that the
+/// crack and morph checks catch real defects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawOptions {
+    /// Lower skirts where a chunk meets another LOD (off: every skirt has
+    /// depth 0, seams between LODs open).
+    pub skirts: bool,
+    /// What drives μ.
+    pub morph: MorphRule,
+}
+
+impl Default for DrawOptions {
+    fn default() -> Self {
+        Self { skirts: true, morph: MorphRule::Parent }
+    }
+}
+
+/// One chunk's mesh as the renderer holds it.
+pub struct LoadedChunk<H> {
+    /// The renderer's handle.
+    pub handle: H,
+    /// Surface triangles.
+    pub surface_triangles: usize,
+    /// Skirt triangles per side (as in `FaceDirection::HORIZONTAL`).
+    pub skirt_triangles: [usize; 4],
+    /// The mesh on the CPU, when the streamer keeps them
+    /// ([`Streamer::keep_cpu_meshes`], for checks that ray-cast what is
+    /// drawn).
+    pub cpu: Option<RenderMesh>,
+}
+
+impl<H: MeshHandle> LoadedChunk<H> {
+    fn bytes(&self) -> u64 {
+        self.handle.bytes() + self.cpu.as_ref().map_or(0, RenderMesh::bytes)
+    }
+}
+
+/// The meshes of one chunk column (all its radial layers).
+struct CachedColumn<H> {
+    /// The radial layers that hold surface (a failed bounds query: none).
+    layers: Vec<i32>,
+    chunks: HashMap<i32, LoadedChunk<H>>,
+    /// Frame it was last drawn or wanted in.
+    last_used: u64,
+}
+
+impl<H: MeshHandle> CachedColumn<H> {
+    fn new<S: VoxelSource + ?Sized>(voxels: &S, column: ChunkColumn, frame: u64) -> Self {
+        let layers = voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
+        Self { layers, chunks: HashMap::new(), last_used: frame }
+    }
+
+    fn ready(&self) -> bool {
+        self.chunks.len() == self.layers.len()
+    }
+
+    fn bytes(&self) -> u64 {
+        self.chunks.values().map(LoadedChunk::bytes).sum()
+    }
+}
+
+/// Every chunk mesh held, by column, and the budget it is held to.
+pub struct MeshCache<H> {
+    columns: HashMap<ChunkColumn, CachedColumn<H>>,
+    /// Keep a CPU copy of each mesh.
+    keep_cpu: bool,
+    /// Columns out of use this many frames are freed (face roots never).
+    pub free_after_frames: u64,
+    /// At most this many chunk meshes are kept: past it, the columns used
+    /// longest ago (not drawn or wanted this frame) are freed first. What
+    /// the frame draws is always kept.
+    pub max_chunks: usize,
+    /// The same for bytes of mesh data held (renderer, plus the CPU copies
+    /// when kept). Chunks differ a lot in size, so a chunk count alone does
+    /// not bound memory (measured: flying 15–150 m over Earth at 600–3,000
+    /// m/s with CPU copies, the cache stays at ≤ 537 MB).
+    pub max_bytes: u64,
+    /// Drawn chunks an edit changed: the old mesh stays on screen until one
+    /// of at least this voxel generation replaces it.
+    stale: HashMap<ChunkKey, u64>,
+}
+
+impl<H: MeshHandle> MeshCache<H> {
+    /// The default [`MeshCache::max_bytes`]: 512 MiB.
+    #[must_use]
+    pub const fn default_max_bytes() -> u64 {
+        512 << 20
+    }
+
+    fn ready(&self, column: ChunkColumn) -> bool {
+        self.columns.get(&column).is_some_and(CachedColumn::ready)
+    }
+
+    /// Bytes the renderer holds for the meshes.
+    #[must_use]
+    pub fn renderer_bytes(&self) -> u64 {
+        self.columns.values().flat_map(|c| c.chunks.values()).map(|c| c.handle.bytes()).sum()
+    }
+
+    /// Chunk meshes held.
+    #[must_use]
+    pub fn chunks(&self) -> usize {
+        self.columns.values().map(|c| c.chunks.len()).sum()
+    }
+
+    /// Bytes of mesh data held (renderer and CPU copies).
+    #[must_use]
+    pub fn held_bytes(&self) -> u64 {
+        self.columns.values().map(CachedColumn::bytes).sum()
+    }
+}
+
+/// A meshing job: one chunk, with the priority of its column.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Job {
+    priority: f64,
+    key: ChunkKey,
+}
+
+impl Eq for Job {}
+
+impl Ord for Job {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.priority.total_cmp(&other.priority).then_with(|| other.key.cmp(&self.key))
+    }
+}
+
+impl PartialOrd for Job {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// The queue workers take jobs from, and the chunks they hold.
+struct JobState<S> {
+    queue: BinaryHeap<Job>,
+    /// Taken by a worker and not collected yet (running, or finished and
+    /// waiting in the channel).
+    running: HashSet<ChunkKey>,
+    /// The voxels jobs read and their generation: a worker takes them with
+    /// each job, so an edit reaches the next job, not the next worker.
+    voxels: Option<(Arc<S>, u64)>,
+}
+
+struct MeshResult {
+    key: ChunkKey,
+    /// The voxel generation the mesh was made from.
+    generation: u64,
+    result: Result<RenderMesh, MeshError>,
+    millis: f64,
+}
+
+/// Meshing jobs: the shared priority queue, the workers on a thread pool of
+/// their own and the channel finished meshes come back on.
+struct Meshing<S> {
+    /// Meshing's own threads: work the frame thread hands to rayon's global
+    /// pool must never queue behind a worker that runs until the job queue
+    /// is empty.
+    pool: Arc<rayon::ThreadPool>,
+    state: Arc<Mutex<JobState<S>>>,
+    workers: Arc<AtomicUsize>,
+    max_workers: usize,
+    /// Bounded: a worker waits once [`MAX_UPLOADS_PER_FRAME`] results are
+    /// waiting, so slow frames never pile meshes up in memory.
+    sender: SyncSender<MeshResult>,
+    /// In a mutex only so that a streamer can be shared (`Sync`), as ECS
+    /// resources must be; only `update` takes it.
+    receiver: Mutex<Receiver<MeshResult>>,
+}
+
+impl<S> Meshing<S> {
+    fn pending(&self) -> usize {
+        self.state.lock().map_or(0, |s| s.queue.len() + s.running.len())
+    }
+}
+
+/// What the next frame draws.
+#[derive(Default, Clone)]
+pub struct DrawList {
+    /// Columns drawn, with their per-chunk draw constants.
+    pub columns: Vec<(ChunkColumn, ChunkDraw)>,
+    /// Visible leaves with nothing to draw for them (no meshed ancestor).
+    pub holes: usize,
+    /// Visible leaves drawn through a coarser ancestor or finer children.
+    pub stand_ins: usize,
+    /// Largest LOD gap between a visible leaf and the ancestor drawn for it.
+    pub max_stand_in_levels: u8,
+    /// Lowest surface radius under the drawn columns.
+    pub min_surface_radius: f64,
+}
+
+/// CPU time per stage, milliseconds, for the last frame (meshing: summed
+/// over the jobs collected this frame).
+#[derive(Default, Clone, Copy, Debug)]
+pub struct StageTimes {
+    /// LOD update and culling.
+    pub lod_ms: f64,
+    /// Choosing what to draw and what to mesh.
+    pub select_ms: f64,
+    /// Meshing jobs collected this frame (CPU time of the jobs, on worker
+    /// threads).
+    pub meshing_ms: f64,
+    /// Meshing CPU time since the start, all jobs.
+    pub meshing_total_ms: f64,
+    /// Chunks meshed since the start.
+    pub chunks_meshed: usize,
+    /// Meshing errors since the start (each logged).
+    pub mesh_errors: usize,
+    /// Uploads of finished meshes this frame.
+    pub upload_ms: f64,
+    /// Recording and submitting the draw (the renderer fills it in).
+    pub render_ms: f64,
+}
+
+/// What the draw list shows, for reports and HUDs.
+#[derive(Clone, Debug, Default)]
+pub struct StreamFigures {
+    /// Chunks drawn.
+    pub chunks: usize,
+    /// Triangles drawn.
+    pub triangles: usize,
+    /// Of which skirts (the sides drawn lowered).
+    pub skirt_triangles: usize,
+    /// Skirt triangles of all sides in the drawn meshes (drawn or not).
+    pub skirt_triangles_held: usize,
+    /// Chunks drawn per LOD.
+    pub lod_histogram: Vec<usize>,
+    /// Visible leaves drawn through an ancestor or their children.
+    pub stand_ins: usize,
+    /// Visible leaves with nothing drawn for them.
+    pub holes: usize,
+    /// Largest LOD difference between neighbouring leaves.
+    pub max_neighbor_lod_diff: u8,
+    /// CPU time per stage.
+    pub times: StageTimes,
+    /// Meshing jobs queued or running.
+    pub jobs_in_flight: usize,
+    /// Bytes of the chunk meshes held by the renderer.
+    pub renderer_bytes: u64,
+    /// Bytes of mesh data held, renderer and CPU copies (what
+    /// [`MeshCache::max_bytes`] bounds).
+    pub held_bytes: u64,
+    /// Chunk meshes held.
+    pub chunks_held: usize,
+}
+
+thread_local! {
+    static BUFFER: std::cell::RefCell<ChunkMeshBuffer> = std::cell::RefCell::new(ChunkMeshBuffer::new());
+}
+
+/// A planet's chunks streamed for a moving camera (see the module docs).
+pub struct Streamer<S, H> {
+    voxels: Arc<S>,
+    /// How many times the voxels were replaced by edited ones.
+    generation: u64,
+    tree: LodTree,
+    meshing: Meshing<S>,
+    /// The meshes held and their budget.
+    pub cache: MeshCache<H>,
+    draw: DrawList,
+    times: StageTimes,
+    frame: u64,
+    options: DrawOptions,
+    eye: Camera,
+}
+
+impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
+    /// A streamer for `voxels` with LOD `settings`, seen first from
+    /// `camera`, meshing on `threads` threads of its own (at least 1). The
+    /// six face roots are meshed and uploaded with `upload` before it
+    /// returns, so every frame has something to draw everywhere.
+    ///
+    /// # Errors
+    /// Bad LOD settings, a root that cannot be meshed, or no thread pool.
+    pub fn new(
+        voxels: Arc<S>,
+        settings: LodSettings,
+        camera: Camera,
+        threads: usize,
+        upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H,
+    ) -> Result<Self, StreamError> {
+        let tree = LodTree::new(&*voxels, settings)?;
+        let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
+        let threads = threads.max(1);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|n| format!("nebula-mesh-{n}"))
+            .build()
+            .map_err(|e| StreamError::Threads(e.to_string()))?;
+        let mut streamer = Self {
+            voxels,
+            generation: 0,
+            tree,
+            meshing: Meshing {
+                pool: Arc::new(pool),
+                state: Arc::new(Mutex::new(JobState {
+                    queue: BinaryHeap::new(),
+                    running: HashSet::new(),
+                    voxels: None,
+                })),
+                workers: Arc::default(),
+                max_workers: threads,
+                sender,
+                receiver: Mutex::new(receiver),
+            },
+            cache: MeshCache {
+                columns: HashMap::new(),
+                keep_cpu: false,
+                free_after_frames: 300,
+                max_chunks: 12_000,
+                max_bytes: MeshCache::<H>::default_max_bytes(),
+                stale: HashMap::new(),
+            },
+            draw: DrawList::default(),
+            times: StageTimes::default(),
+            frame: 0,
+            options: DrawOptions::default(),
+            eye: camera,
+        };
+        streamer.mesh_roots(upload)?;
+        Ok(streamer)
+    }
+
+    /// Meshes the face roots on the calling thread (all of the planet, at
+    /// its coarsest LOD: the stand-in of last resort).
+    fn mesh_roots(&mut self, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> Result<(), StreamError> {
+        let max_lod = self.voxels.layout().max_lod();
+        let mut buffer = ChunkMeshBuffer::new();
+        for face in CubeFace::ALL {
+            let column = ChunkColumn { face, lod: max_lod, x: 0, y: 0 };
+            for layer in self.voxels.surface_chunk_layers(column)? {
+                let key = column.chunk(layer);
+                let mesh = mesh_chunk(
+                    &*self.voxels,
+                    key,
+                    &ChunkLodContext::uniform(max_lod),
+                    MeshOptions::STREAMING,
+                    &mut buffer,
+                )?;
+                let done = MeshResult { key, generation: 0, result: Ok(mesh.render_mesh()), millis: 0.0 };
+                self.store(done, upload);
+            }
+        }
+        Ok(())
+    }
+
+    /// Keep a CPU copy of every mesh (for checks that ray-cast what is
+    /// drawn); counted in the byte budget.
+    pub fn keep_cpu_meshes(&mut self, keep: bool) {
+        self.cache.keep_cpu = keep;
+    }
+
+    /// Changes what is drawn (see [`DrawOptions`]), from the next update.
+    pub fn set_draw_options(&mut self, options: DrawOptions) {
+        self.options = options;
+    }
+
+    /// The draw options.
+    #[must_use]
+    pub fn draw_options(&self) -> DrawOptions {
+        self.options
+    }
+
+    /// The voxels streamed.
+    #[must_use]
+    pub fn voxels(&self) -> &Arc<S> {
+        &self.voxels
+    }
+
+    /// The LOD tree.
+    #[must_use]
+    pub fn tree(&self) -> &LodTree {
+        &self.tree
+    }
+
+    /// The camera of the last update.
+    #[must_use]
+    pub fn camera(&self) -> &Camera {
+        &self.eye
+    }
+
+    /// One frame: updates the LOD selection for `camera`, uploads finished
+    /// meshes with `upload` (at most [`MAX_UPLOADS_PER_FRAME`]), chooses
+    /// what to draw and what to mesh next, and frees meshes past the
+    /// budget. Never waits for meshing.
+    pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
+        self.frame += 1;
+        self.eye = camera;
+        let start = Instant::now();
+        if let Err(error) = self.tree.update(&*self.voxels, &camera).and_then(|_| self.tree.cull(&camera)) {
+            eprintln!("nebula: LOD update failed, keeping the last selection: {error}");
+        }
+        self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.collect(upload);
+        self.select();
+        self.free();
+    }
+
+    /// Draws `voxels` from now on: the same planet after edits whose dirty
+    /// chunks (every LOD, as `World::apply` returns them) are `dirty`.
+    /// Chunks on screen keep their old mesh until the new one is uploaded,
+    /// so an edit never opens a hole; others are dropped and meshed again
+    /// when needed. The LOD tree re-reads the bounds of the columns touched
+    /// (an edit can raise or sink the surface).
+    ///
+    /// # Errors
+    /// If the voxel source refuses a touched column.
+    pub fn set_voxels(&mut self, voxels: Arc<S>, dirty: &[ChunkKey]) -> Result<(), StreamError> {
+        self.generation += 1;
+        self.voxels = voxels;
+        let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
+        self.tree.refresh_bounds(&*self.voxels, columns.iter().copied())?;
+        let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
+        for &column in &columns {
+            let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
+            cached.layers = self.voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
+            let layers = cached.layers.clone();
+            cached.chunks.retain(|layer, _| layers.contains(layer));
+            if !drawn.contains(&column) {
+                for key in dirty.iter().filter(|key| key.column() == column) {
+                    cached.chunks.remove(&key.layer);
+                }
+            }
+        }
+        for key in dirty {
+            let column = key.column();
+            if drawn.contains(&column)
+                && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains_key(&key.layer))
+            {
+                self.cache.stale.insert(*key, self.generation);
+            }
+        }
+        Ok(())
+    }
+
+    /// Chunks on screen still drawn from before an edit.
+    #[must_use]
+    pub fn stale_chunks(&self) -> usize {
+        self.cache.stale.len()
+    }
+
+    /// Whether the view is final: nothing drawn in place of a visible leaf,
+    /// no job queued or running and nothing drawn from before an edit.
+    #[must_use]
+    pub fn settled(&self) -> bool {
+        self.draw.stand_ins == 0 && self.draw.holes == 0 && self.meshing.pending() == 0 && self.cache.stale.is_empty()
+    }
+
+    /// Meshing jobs queued or running.
+    #[must_use]
+    pub fn jobs_in_flight(&self) -> usize {
+        self.meshing.pending()
+    }
+
+    /// What the last update chose to draw.
+    #[must_use]
+    pub fn draw_list(&self) -> &DrawList {
+        &self.draw
+    }
+
+    /// The chunks to draw this frame, with their draw constants.
+    pub fn drawn(&self) -> impl Iterator<Item = (ChunkKey, &LoadedChunk<H>, ChunkDraw)> + '_ {
+        self.draw
+            .columns
+            .iter()
+            .filter_map(|(column, draw)| self.cache.columns.get(column).map(|c| (*column, c, *draw)))
+            .flat_map(|(column, cached, draw)| {
+                cached.chunks.iter().map(move |(&layer, chunk)| (column.chunk(layer), chunk, draw))
+            })
+    }
+
+    /// The vertex shader's per-frame constants for an eye at `eye`.
+    #[must_use]
+    pub fn frame_draw(&self, eye: nebula_math::DVec3) -> FrameDraw {
+        let settings = self.tree.settings();
+        let k = settings.screen_space().map_or(1.0, |s| s.k());
+        FrameDraw::new(eye, k, settings.threshold_px, self.options.morph != MorphRule::Off)
+    }
+
+    /// Figures of what the draw list shows.
+    #[must_use]
+    pub fn figures(&self) -> StreamFigures {
+        let max_lod = self.tree.max_lod();
+        let mut figures =
+            StreamFigures { lod_histogram: vec![0; usize::from(max_lod) + 1], ..StreamFigures::default() };
+        for (key, chunk, draw) in self.drawn() {
+            figures.chunks += 1;
+            let skirts: usize =
+                chunk.skirt_triangles.iter().zip(draw.skirt_depths).filter(|(_, d)| *d > 0.0).map(|(n, _)| n).sum();
+            figures.triangles += chunk.surface_triangles + skirts;
+            figures.skirt_triangles += skirts;
+            figures.skirt_triangles_held += chunk.skirt_triangles.iter().sum::<usize>();
+            figures.lod_histogram[usize::from(key.lod)] += 1;
+        }
+        figures.stand_ins = self.draw.stand_ins;
+        figures.holes = self.draw.holes;
+        figures.max_neighbor_lod_diff = self.tree.stats().max_neighbor_lod_diff;
+        figures.times = self.times;
+        figures.jobs_in_flight = self.jobs_in_flight();
+        figures.renderer_bytes = self.cache.renderer_bytes();
+        figures.held_bytes = self.cache.held_bytes();
+        figures.chunks_held = self.cache.chunks();
+        figures
+    }
+
+    /// Records the renderer's time for the frame (shown in the figures).
+    pub fn set_render_ms(&mut self, ms: f64) {
+        self.times.render_ms = ms;
+    }
+
+    /// The lowest surface radius anywhere: a camera must stay above it.
+    #[must_use]
+    pub fn min_surface_radius(&self) -> f64 {
+        self.tree.min_surface_radius()
+    }
+
+    /// The lowest surface radius under the columns drawn: everything on
+    /// screen lies above it.
+    #[must_use]
+    pub fn view_min_surface_radius(&self) -> f64 {
+        if self.draw.min_surface_radius.is_finite() { self.draw.min_surface_radius } else { self.min_surface_radius() }
+    }
+
+    /// Uploads a finished job into the cache (a failed one is logged and
+    /// stored empty, so its column is not blocked for ever).
+    fn store(&mut self, done: MeshResult, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
+        let key = done.key;
+        let column = key.column();
+        let (mesh, failed) = match done.result {
+            Ok(mesh) => (mesh, false),
+            Err(error) => {
+                eprintln!("nebula: meshing {key:?} failed, drawing it empty: {error}");
+                (RenderMesh::default(), true)
+            }
+        };
+        let handle = upload(key, &mesh);
+        let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
+        let loaded =
+            LoadedChunk { handle, surface_triangles, skirt_triangles, cpu: self.cache.keep_cpu.then_some(mesh) };
+        let entry =
+            self.cache.columns.entry(column).or_insert_with(|| CachedColumn::new(&*self.voxels, column, self.frame));
+        if entry.layers.contains(&key.layer) {
+            entry.chunks.insert(key.layer, loaded);
+        }
+        if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
+            self.cache.stale.remove(&key);
+        }
+        failed
+    }
+
+    /// Picks up finished meshes and uploads them.
+    fn collect(&mut self, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
+        let start = Instant::now();
+        let results: Vec<MeshResult> = self
+            .meshing
+            .receiver
+            .lock()
+            .map(|r| r.try_iter().take(MAX_UPLOADS_PER_FRAME).collect())
+            .unwrap_or_default();
+        if let Ok(mut state) = self.meshing.state.lock() {
+            for done in &results {
+                state.running.remove(&done.key);
+            }
+        }
+        let mut meshing_ms = 0.0;
+        for done in results {
+            meshing_ms += done.millis;
+            self.times.chunks_meshed += 1;
+            if self.store(done, upload) {
+                self.times.mesh_errors += 1;
+            }
+        }
+        self.times.meshing_ms = meshing_ms;
+        self.times.meshing_total_ms += meshing_ms;
+        self.times.upload_ms = start.elapsed().as_secs_f64() * 1e3;
+    }
+
+    /// Chooses what to draw (see the module docs), the skirt depth of every
+    /// drawn side, and the meshing jobs, by priority.
+    fn select(&mut self) {
+        let start = Instant::now();
+        let voxels = &*self.voxels;
+        let tree = &self.tree;
+        let cache = &mut self.cache;
+        let frame = self.frame;
+        let layout = voxels.layout();
+        let max_lod = layout.max_lod();
+        let eye = self.eye.position;
+        let mut drawn: Vec<ChunkColumn> = Vec::new();
+        let mut ancestors: HashSet<ChunkColumn> = HashSet::new();
+        let mut wanted: Vec<ChunkColumn> = Vec::new();
+        let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
+        for &leaf in tree.visible_leaves() {
+            if let Some(cached) = cache.columns.get_mut(&leaf).filter(|c| c.ready()) {
+                // In use even when a stand-in covering it is drawn instead
+                // (a sibling is not ready): never freed while it is a leaf.
+                cached.last_used = frame;
+                drawn.push(leaf);
+                continue;
+            }
+            wanted.push(leaf);
+            stand_ins += 1;
+            if let Some(finer) = children(leaf)
+                && finer.iter().all(|&c| cache.ready(c))
+            {
+                drawn.extend(finer);
+                continue;
+            }
+            let mut ancestor = leaf;
+            let mut found = false;
+            while ancestor.lod < max_lod {
+                let Some(up) = parent(ancestor) else { break };
+                ancestor = up;
+                if cache.ready(ancestor) {
+                    found = true;
+                    break;
+                }
+                if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
+                    wanted.push(ancestor);
+                }
+            }
+            if found {
+                max_levels = max_levels.max(ancestor.lod - leaf.lod);
+                ancestors.insert(ancestor);
+            } else {
+                holes += 1;
+            }
+        }
+        // A drawn ancestor covers everything under it.
+        let covered = |column: ChunkColumn| {
+            let mut c = column;
+            while c.lod < max_lod {
+                let Some(up) = parent(c) else { break };
+                c = up;
+                if ancestors.contains(&c) {
+                    return true;
+                }
+            }
+            false
+        };
+        let mut columns: Vec<ChunkColumn> = drawn.into_iter().filter(|&c| !covered(c)).collect();
+        columns.extend(ancestors.iter().copied().filter(|&c| !covered(c)));
+        columns.sort_unstable();
+        columns.dedup();
+        let set: HashSet<ChunkColumn> = columns.iter().copied().collect();
+        let mut min_radius = f64::INFINITY;
+        let options = self.options;
+        self.draw.columns = columns
+            .iter()
+            .map(|&column| {
+                if let Some(cached) = cache.columns.get_mut(&column) {
+                    cached.last_used = frame;
+                }
+                // The tree's cached bounds; a stand-in the tree merged away
+                // asks the source (noise) once here.
+                let low = tree
+                    .node_bounds(column)
+                    .map(|b| b.min_radius)
+                    .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius));
+                if let Some(low) = low {
+                    min_radius = min_radius.min(low);
+                }
+                (column, chunk_draw(voxels, column, &set, options))
+            })
+            .collect();
+        self.draw.holes = holes;
+        self.draw.stand_ins = stand_ins;
+        self.draw.max_stand_in_levels = max_levels;
+        self.draw.min_surface_radius = min_radius;
+
+        // Jobs: every chunk of a wanted column not meshed and not running,
+        // the largest projected voxel first.
+        let k = tree.settings().screen_space().map_or(1.0, |s| s.k());
+        let mut jobs = Vec::new();
+        let mut seen = HashSet::new();
+        for column in wanted {
+            if !seen.insert(column) {
+                continue;
+            }
+            let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
+            let priority = layout.voxel_edge(column.lod) * k / distance;
+            let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, column, frame));
+            entry.last_used = frame;
+            for &layer in &entry.layers {
+                if !entry.chunks.contains_key(&layer) {
+                    jobs.push(Job { priority, key: column.chunk(layer) });
+                }
+            }
+        }
+        // Drawn chunks an edit changed go first: the player is looking at
+        // them.
+        for (&key, _) in cache.stale.iter().filter(|(key, _)| set.contains(&key.column())) {
+            jobs.push(Job { priority: f64::MAX, key });
+        }
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.queue.clear();
+            let running = state.running.clone();
+            state.queue.extend(jobs.into_iter().filter(|job| !running.contains(&job.key)));
+            state.voxels = Some((self.voxels.clone(), self.generation));
+        }
+        self.spawn_workers();
+        self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
+    }
+
+    /// Starts workers until every meshing thread has one or the queue is
+    /// empty. A worker takes the top job, meshes it and sends it back,
+    /// until the queue is empty; nothing ever waits for it.
+    fn spawn_workers(&self) {
+        let meshing = &self.meshing;
+        loop {
+            let queued = meshing.state.lock().map_or(0, |s| s.queue.len());
+            let workers = meshing.workers.load(Ordering::Acquire);
+            if queued == 0 || workers >= meshing.max_workers {
+                return;
+            }
+            meshing.workers.fetch_add(1, Ordering::AcqRel);
+            let (state, workers, sender) = (meshing.state.clone(), meshing.workers.clone(), meshing.sender.clone());
+            meshing.pool.spawn(move || {
+                loop {
+                    let job = state.lock().ok().and_then(|mut s| {
+                        let voxels = s.voxels.clone()?;
+                        let job = s.queue.pop()?;
+                        s.running.insert(job.key);
+                        Some((job, voxels))
+                    });
+                    let Some((job, (voxels, generation))) = job else { break };
+                    let start = Instant::now();
+                    let result = BUFFER.with(|buffer| {
+                        mesh_chunk(
+                            &*voxels,
+                            job.key,
+                            &ChunkLodContext::uniform(job.key.lod),
+                            MeshOptions::STREAMING,
+                            &mut buffer.borrow_mut(),
+                        )
+                        .map(|mesh| mesh.render_mesh())
+                    });
+                    let millis = start.elapsed().as_secs_f64() * 1e3;
+                    // It stays in the running set until collected, so no
+                    // queue refresh asks for it again while it waits in the
+                    // channel.
+                    let _ = sender.send(MeshResult { key: job.key, generation, result, millis });
+                }
+                workers.fetch_sub(1, Ordering::AcqRel);
+            });
+        }
+    }
+
+    /// Frees columns out of use for a while (every 10 frames), and every
+    /// frame the least recently used ones past the cache's chunk or byte
+    /// budget (never the face roots, never what this frame draws or wants).
+    fn free(&mut self) {
+        let max_lod = self.tree.max_lod();
+        let frame = self.frame;
+        let cache = &mut self.cache;
+        if frame.is_multiple_of(10) {
+            let limit = cache.free_after_frames;
+            cache
+                .columns
+                .retain(|column, cached| column.lod == max_lod || frame.saturating_sub(cached.last_used) <= limit);
+        }
+        let (mut chunks, mut bytes) = (cache.chunks(), cache.held_bytes());
+        let over = |chunks: usize, bytes: u64| chunks > cache.max_chunks || bytes > cache.max_bytes;
+        if !over(chunks, bytes) {
+            return;
+        }
+        let mut old: Vec<(u64, ChunkColumn)> = cache
+            .columns
+            .iter()
+            .filter(|(column, cached)| column.lod != max_lod && cached.last_used < frame)
+            .map(|(column, cached)| (cached.last_used, *column))
+            .collect();
+        old.sort_unstable();
+        let mut freed = Vec::new();
+        for (_, column) in old {
+            if !over(chunks, bytes) {
+                break;
+            }
+            if let Some(cached) = cache.columns.get(&column) {
+                chunks -= cached.chunks.len();
+                bytes -= cached.bytes();
+                freed.push(column);
+            }
+        }
+        for column in freed {
+            cache.columns.remove(&column);
+        }
+    }
+}
+
+/// The draw constants of `column` when the columns in `drawn` are drawn:
+/// the error it morphs towards and, per side, a skirt as deep as the LOD
+/// drawn across that side needs (none next to the same LOD, whose
+/// boundary vertices are shared exactly).
+fn chunk_draw<S: VoxelSource + ?Sized>(
+    voxels: &S,
+    column: ChunkColumn,
+    drawn: &HashSet<ChunkColumn>,
+    options: DrawOptions,
+) -> ChunkDraw {
+    let layout = voxels.layout();
+    let max_lod = layout.max_lod();
+    let parent_error = match options.morph {
+        MorphRule::Own => voxels.geometric_error(column.lod),
+        _ => layout.merge_error(column.lod),
+    };
+    let mut skirt_depths = [0.0f32; 4];
+    if !options.skirts {
+        return ChunkDraw { parent_error, skirt_depths };
+    }
+    for (depth, side) in skirt_depths.iter_mut().zip(FaceDirection::HORIZONTAL) {
+        let Some(edge) = side.face_edge() else { continue };
+        let mut across = layout.neighbor(column.chunk(0), edge).column();
+        if drawn.contains(&across) {
+            continue;
+        }
+        // A coarser column drawn across (an ancestor of the same-LOD
+        // neighbour), else finer ones: the deepest a finer side can need is
+        // the depth for the same LOD.
+        let mut other = column.lod;
+        while across.lod < max_lod {
+            let Some(up) = parent(across) else { break };
+            across = up;
+            if drawn.contains(&across) {
+                other = across.lod;
+                break;
+            }
+        }
+        *depth = skirt_depth(voxels, column.lod, other) as f32;
+    }
+    ChunkDraw { parent_error, skirt_depths }
+}
+
+/// Why a [`Streamer`] could not start or take new voxels.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StreamError {
+    /// Bad LOD settings or camera, or the source refused a node.
+    #[error(transparent)]
+    Lod(#[from] LodError),
+    /// A face root could not be meshed.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// The voxel source refused a column.
+    #[error(transparent)]
+    Voxel(#[from] nebula_voxel::VoxelError),
+    /// The meshing thread pool could not start.
+    #[error("the meshing threads could not start: {0}")]
+    Threads(String),
+}
