@@ -17,6 +17,10 @@
 //! - **Per-chunk diffs**: one value per LOD-0 chunk holding that chunk's
 //!   edited voxels (3 bytes each), keyed by the chunk; coarse LODs are
 //!   derived from LOD 0 by the planet's far-corner rule, never stored.
+//! - **Streaming** ([`stream`]): a [`stream::Streamer`] decides what to
+//!   mesh, draw and free for a moving camera, for any renderer (it uploads
+//!   through a function the game gives it); [`ecs`] wraps it as bevy_ecs
+//!   resources and a system.
 //! - **Walking** ([`walk`]): bodies are upright boxes in the local
 //!   east/north/up frame, moved axis by axis against the solid voxels'
 //!   boxes in that frame, as block games do.
@@ -47,6 +51,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+#[cfg(feature = "bevy")]
+pub mod ecs;
 mod error;
 mod store;
 pub mod stream;
