@@ -38,6 +38,18 @@ pub struct Shot {
 }
 
 impl Shot {
+    /// The LOD settings this shot is drawn with: its τ, image height and
+    /// field of view.
+    #[must_use]
+    pub fn lod_settings(&self) -> LodSettings {
+        LodSettings {
+            threshold_px: self.sse_px,
+            screen_height_px: f64::from(self.size.1),
+            fov_y_degrees: self.fov_y_degrees,
+            ..LodSettings::default()
+        }
+    }
+
     /// A 60° shot from `position` at `look_at`.
     #[must_use]
     pub fn looking_at(position: DVec3, look_at: DVec3, size: (u32, u32)) -> Self {
@@ -117,13 +129,7 @@ pub fn render_shot(planet: &PlanetSettings, shot: &Shot) -> anyhow::Result<Pictu
     let gpu = headless_gpu()?;
     let planet = ProceduralPlanet::new(planet.clone())?;
     let view = shot_view(shot)?;
-    let settings = LodSettings {
-        threshold_px: shot.sse_px,
-        screen_height_px: f64::from(shot.size.1),
-        fov_y_degrees: shot.fov_y_degrees,
-        ..LodSettings::default()
-    };
-    let mut app = PlanetApp::new(planet, settings, gpu, view)?;
+    let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, view)?;
     render_app(&mut app, shot)
 }
 

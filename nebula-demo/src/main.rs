@@ -21,7 +21,6 @@ use nebula_demo::commands;
 use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::planet_settings;
-use nebula_lod::LodSettings;
 use nebula_math::DVec3;
 use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
 use nebula_world::walk::Walker;
@@ -311,22 +310,13 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn lod_settings(shot: &Shot) -> LodSettings {
-    LodSettings {
-        threshold_px: shot.sse_px,
-        screen_height_px: f64::from(shot.size.1),
-        fov_y_degrees: shot.fov_y_degrees,
-        ..LodSettings::default()
-    }
-}
-
 fn draw_options(args: &Args) -> DrawOptions {
     DrawOptions { skirts: !args.no_skirts, morph: args.morph.into() }
 }
 
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = nebula_demo::headless::headless_gpu()?;
-    let mut app = PlanetApp::with_voxels(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     if args.screenshot.is_none() && args.camera_pos.is_none() {
         // No camera given: an orbit-to-surface sequence.
@@ -368,7 +358,7 @@ fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: 
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
     let gpu = nebula_demo::headless::headless_gpu()?;
-    let mut app = PlanetApp::with_voxels(planet, lod_settings(shot), gpu, shot_view(shot)?)?;
+    let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     let report = nebula_demo::flight::fly(&mut app, &flight, shot, args.fps, args.frames_dir.as_deref())?;
     let json = report.json();
@@ -613,7 +603,7 @@ impl ApplicationHandler for Windowed {
             let size = window.inner_size();
             let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
             surface.configure(&gpu.device, &config);
-            let mut app = PlanetApp::with_voxels(planet, lod_settings(&self.shot), gpu, shot_view(&self.shot)?)?;
+            let mut app = PlanetApp::with_voxels(planet, self.shot.lod_settings(), gpu, shot_view(&self.shot)?)?;
             app.set_draw_options(self.options);
             Ok(WindowState { window, surface, config, app })
         })();

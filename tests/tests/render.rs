@@ -18,7 +18,6 @@ use nebula_demo::flight::{Flight, FlightReport, Keyframe, fly};
 use nebula_demo::gpu::DebugView;
 use nebula_demo::headless::{Picture, Shot, draw_frame, headless_gpu, render_app, report_json, shot_view, write_png};
 use nebula_demo::planet_settings;
-use nebula_lod::LodSettings;
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
@@ -56,14 +55,9 @@ fn shot(position: DVec3, look_at: DVec3, fov: f64) -> Shot {
 
 fn app(settings: &PlanetSettings, shot: &Shot, options: DrawOptions) -> PlanetApp {
     let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
-    let lod = LodSettings {
-        threshold_px: shot.sse_px,
-        screen_height_px: f64::from(shot.size.1),
-        fov_y_degrees: shot.fov_y_degrees,
-        ..LodSettings::default()
-    };
     let mut app =
-        PlanetApp::new(planet, lod, headless_gpu().expect("adapter"), shot_view(shot).expect("view")).expect("app");
+        PlanetApp::new(planet, shot.lod_settings(), headless_gpu().expect("adapter"), shot_view(shot).expect("view"))
+            .expect("app");
     app.set_draw_options(options);
     app
 }
@@ -448,12 +442,26 @@ fn arena_page_bytes() -> u64 {
     u64::from(PAGE_VERTICES) * size_of::<nebula_meshing::RenderVertex>() as u64 + u64::from(PAGE_INDICES) * 4
 }
 
-fn lod_settings_for(shot: &Shot) -> LodSettings {
-    LodSettings {
-        threshold_px: shot.sse_px,
-        screen_height_px: f64::from(shot.size.1),
-        fov_y_degrees: shot.fov_y_degrees,
-        ..LodSettings::default()
+/// Steps and draws `app` from `shot`, crack-checking every frame, until
+/// the view settles (after an edit, say). Returns the settled picture and
+/// the frames it took.
+fn settle_checking_every_frame(app: &mut PlanetApp, shot: &Shot, what: &str) -> (Picture, usize) {
+    let view = shot_view(shot).expect("view");
+    let mut frames = 0;
+    loop {
+        app.step();
+        frames += 1;
+        let picture = draw_frame(app, shot, &view).expect("draws");
+        assert_eq!(
+            picture.figures.crack_pixels,
+            Some(0),
+            "frame {frames} after {what} has cracks at {:?}",
+            picture.figures.cracks.samples
+        );
+        if app.settled() {
+            return (picture, frames);
+        }
+        assert!(frames < 600, "{what} did not settle in 600 frames");
     }
 }
 
@@ -479,7 +487,7 @@ fn live_edits_show_within_frames_and_no_frame_has_a_hole() {
     let new_app = |world: &World| {
         PlanetApp::with_voxels(
             world.voxels(),
-            lod_settings_for(&shot),
+            shot.lod_settings(),
             headless_gpu().expect("adapter"),
             shot_view(&shot).expect("view"),
         )
@@ -502,31 +510,14 @@ fn live_edits_show_within_frames_and_no_frame_has_a_hole() {
         ])
         .expect("edits");
     app.set_voxels(world.voxels(), &applied.dirty).expect("shown");
-    let view = shot_view(&shot).expect("view");
-    let mut frames = 0;
-    let mut stale_at_start = None;
-    let after = loop {
-        app.step();
-        frames += 1;
-        stale_at_start.get_or_insert(app.stale_chunks());
-        let picture = draw_frame(&mut app, &shot, &view).expect("draws");
-        assert_eq!(
-            picture.figures.crack_pixels,
-            Some(0),
-            "frame {frames} after the edit has cracks at {:?}",
-            picture.figures.cracks.samples
-        );
-        if app.settled() {
-            break picture;
-        }
-        assert!(frames < 600, "the edit did not settle in 600 frames");
-    };
+    let stale_at_start = app.stale_chunks();
+    let (after, frames) = settle_checking_every_frame(&mut app, &shot, "the edit");
     write_png(&folder().join("live-edit.png"), &after.rgba, after.size).expect("png written");
     let changed = before.rgba.chunks(4).zip(after.rgba.chunks(4)).filter(|(a, b)| a != b).count();
     println!(
         "live edit: {} dirty chunks, {} drawn ones kept until re-meshed, settled after {frames} frames, {changed} pixels changed",
         applied.dirty.len(),
-        stale_at_start.unwrap_or(0)
+        stale_at_start
     );
     assert!(changed > 2_000, "the edit barely shows: {changed} pixels changed");
     let fresh = render_app(&mut new_app(&world), &shot).expect("renders");
@@ -592,7 +583,7 @@ fn a_shaft_dug_against_a_lod_seam_opens_no_hole() {
     let app_for = |world: &World, shot: &Shot| {
         PlanetApp::with_voxels(
             world.voxels(),
-            lod_settings_for(shot),
+            shot.lod_settings(),
             headless_gpu().expect("adapter"),
             shot_view(shot).expect("view"),
         )
@@ -629,23 +620,7 @@ fn a_shaft_dug_against_a_lod_seam_opens_no_hole() {
     app.set_voxels(world.voxels(), &applied.dirty).expect("shown");
     let stale = app.stale_chunks();
     assert!(stale > 0, "no drawn chunk waits for the shaft's mesh");
-    let view = shot_view(&shot).expect("view");
-    let mut frames = 0;
-    let after = loop {
-        app.step();
-        frames += 1;
-        let picture = draw_frame(&mut app, &shot, &view).expect("draws");
-        assert_eq!(
-            picture.figures.crack_pixels,
-            Some(0),
-            "frame {frames} after the shaft: cracks at {:?}",
-            picture.figures.cracks.samples
-        );
-        if app.settled() {
-            break picture;
-        }
-        assert!(frames < 600, "the shaft did not settle in 600 frames");
-    };
+    let (after, frames) = settle_checking_every_frame(&mut app, &shot, "the shaft");
     write_png(&folder().join("seam-shaft.png"), &after.rgba, after.size).expect("png written");
     // At a seam the LOD-0 chunk is nearly morphed into its parent, where a
     // one-voxel shaft shows only if it is a coarse voxel's far corner: it
