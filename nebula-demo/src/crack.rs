@@ -8,7 +8,7 @@
 //! 2. **geometry rule**: the ray hits a triangle that frame drew, at least
 //!    [`ROBUST_MARGIN_PX`] inside its edges. The triangles are the drawn
 //!    meshes exactly as the vertex shader places them (morph and draw-time
-//!    skirt depths included; [`RenderVertex::drawn_relative`] is the
+//!    skirt depths included; [`RenderVertex::drawn_relative`](nebula_meshing::RenderVertex::drawn_relative) is the
 //!    shader's CPU twin), intersected in f64. A front face the rasteriser
 //!    should have covered is a pinhole; a back face means the ray got
 //!    inside the ground without crossing its surface.
