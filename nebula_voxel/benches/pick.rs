@@ -3,8 +3,9 @@
 //! the cost of reading one voxel (a noise evaluation) in the same run. Run:
 //! `cargo bench -p nebula_voxel --bench pick`.
 //!
-//! Measured 2026-11-22 on the 2-core dev machine: see the README's
-//! "Pick and edit" table.
+//! Measured 2026-11-22 on the 2-core dev machine: straight down 63 µs,
+//! grazing 239 µs (331 µs before LOD-3 columns were skipped first), one
+//! voxel read 1.12 µs.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, VoxelSource, pick};

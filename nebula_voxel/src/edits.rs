@@ -234,6 +234,16 @@ impl<S: VoxelSource> EditedSource<S> {
             }
             self.mark_changed(&layout, cell, dirty);
         }
+        // Every coarser column over the voxel bounds it too, whether or not
+        // its LOD shows it: queries of LOD-0 voxels (picking) may skip a
+        // coarse column by its bounds.
+        let h = i64::from(at.h);
+        for lod in 1..=layout.max_lod() {
+            let shift = u32::from(lod) + CHUNK_SIZE.trailing_zeros();
+            let column = ChunkColumn { face: at.face, lod, x: at.i >> shift, y: at.j >> shift };
+            let range = self.touched_columns.entry(column).or_insert((h, h));
+            *range = (range.0.min(h), range.1.max(h));
+        }
         Ok(())
     }
 

@@ -8,10 +8,11 @@
 //! (across a cube-face edge through `CubeFace::wrap_cell`). No sampling
 //! step, so thin walls and corners are never skipped.
 //!
-//! Empty space is skipped a chunk column at a time: where the ray's lowest
-//! point inside a LOD-0 chunk column stays above the column's
-//! [`SurfaceBounds::max_radius`] (which [`EditedSource`](crate::EditedSource)
-//! raises for edits), no voxel of it is read.
+//! Empty space is skipped a chunk column at a time, first LOD-3 columns
+//! (256 cells across), then LOD-0 ones: where the ray's lowest point inside
+//! a column stays above the column's [`SurfaceBounds::max_radius`] (which
+//! [`EditedSource`](crate::EditedSource) raises for every edit under it),
+//! no voxel of it is read.
 
 use std::collections::HashMap;
 
@@ -113,6 +114,23 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
         let mut before = None;
         while t <= self.max_distance {
             let (face, i, j, h) = cell;
+            // First a coarse column (256 LOD-0 cells across): its bounds
+            // hold every LOD-0 voxel in it, edits included.
+            let coarse_lod = COARSE_SKIP_LOD.min(layout.max_lod());
+            let shift = u32::from(coarse_lod) + CHUNK_SIZE.trailing_zeros();
+            let coarse = ChunkColumn { face, lod: coarse_lod, x: (i >> shift) as u32, y: (j >> shift) as u32 };
+            let coarse_bounds = self.bounds_of(coarse)?;
+            if coarse_lod > 0 && h > coarse_bounds.max_layer {
+                let (exit, wall) = self.column_exit(coarse, t);
+                if self.lowest_radius(t, exit) > coarse_bounds.max_radius {
+                    if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {
+                        return Ok(None);
+                    }
+                    let (last, next) = self.across_column_wall(coarse, wall, exit)?;
+                    (cell, t, entered, before) = (next, exit, Some(wall), Some(voxel_at(last)));
+                    continue;
+                }
+            }
             let column = ChunkColumn {
                 face,
                 lod: 0,
@@ -210,7 +228,7 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
     }
 
     fn column_exit(&self, column: ChunkColumn, t: f64) -> (f64, Wall) {
-        let size = i64::from(CHUNK_SIZE);
+        let size = column_cells(column);
         let (i0, j0) = (i64::from(column.x) * size, i64::from(column.y) * size);
         let (exit, side) = self.wedge_exit(column.face, (i0, i0 + size), (j0, j0 + size), t);
         (exit, Wall::Side(side))
@@ -261,7 +279,7 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
     /// `wall`, where the ray crosses that wall at `t`.
     fn across_column_wall(&self, column: ChunkColumn, wall: Wall, t: f64) -> Result<(Cell, Cell), VoxelError> {
         let sphere = self.source.layout().sphere();
-        let size = i64::from(CHUNK_SIZE);
+        let size = column_cells(column);
         let (i0, j0) = (i64::from(column.x) * size, i64::from(column.y) * size);
         let point = self.at(t);
         // The in-face coordinates along the wall come from the point, in
@@ -320,6 +338,14 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
         };
         VoxelHit { voxel, face, normal, point, distance: t, before }
     }
+}
+
+/// The LOD of the columns tried first: 8 × 8 LOD-0 chunk columns.
+const COARSE_SKIP_LOD: u8 = 3;
+
+/// LOD-0 cells across a chunk column of `column`'s LOD.
+fn column_cells(column: ChunkColumn) -> i64 {
+    i64::from(CHUNK_SIZE) << column.lod
 }
 
 /// A LOD-0 voxel while walking: face, i, j, layer (unchecked).

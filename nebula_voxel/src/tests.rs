@@ -488,3 +488,31 @@ fn pick_refuses_bad_rays_and_misses_from_space() {
     let hit = pick(planet, inside, DVec3::X, 10.0).unwrap().expect("inside rock");
     assert_eq!((hit.distance, hit.face, hit.before), (0.0, None, None));
 }
+
+#[test]
+fn pick_sees_a_block_placed_far_above_the_terrain() {
+    // Empty space is skipped by coarse columns' bounds, so an edit must
+    // raise the bounds of every column over it, not only of the LODs that
+    // show it. Blocks 300 m over the ground, hit by level rays from 50 m.
+    for planet in [small().clone(), ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap()] {
+        let mut edited = EditedSource::new(planet.clone());
+        let mut state = 0xb10c_u64;
+        let mut unit = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..8 {
+            let up = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
+            let block = planet.surface_point(up) + up * 300.0;
+            let at = edited.layout().voxel_at(block).unwrap();
+            edited.set_voxel(at, Voxel::STONE).unwrap();
+            let side = up.any_orthonormal_vector();
+            let origin = block + side * 50.0;
+            let hit = pick(&edited, origin, block - origin, 100.0).unwrap().expect("the floating block");
+            assert_eq!(hit.voxel, at);
+            assert!(pick(&planet, origin, block - origin, 100.0).unwrap().is_none(), "the unedited sky is empty");
+        }
+    }
+}
