@@ -23,7 +23,7 @@ use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png}
 use nebula_demo::planet_settings;
 use nebula_math::DVec3;
 use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
-use nebula_world::walk::Walker;
+use nebula_world::walk::{Body, Walker, is_solid, move_body};
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
@@ -382,6 +382,10 @@ fn app_ground_radius(app: &PlanetApp, dir: DVec3) -> f64 {
 /// How far a click reaches, metres.
 const EDIT_REACH: f64 = 200.0;
 
+/// Flying steps shorter than this (metres per frame) collide with blocks;
+/// longer ones (high up, where speed scales with altitude) fly free.
+const FLY_COLLIDE_BELOW_STEP: f64 = 2.0;
+
 /// The windowed demo.
 struct Windowed {
     /// The planet and its edits; clicks edit it and save to its file.
@@ -492,7 +496,10 @@ impl Windowed {
         let (forward, up) = self.basis();
         let Some(state) = self.state.as_mut() else { return Ok(()) };
         let min_radius = state.app.min_surface_radius();
-        let altitude = (self.eye.length() - min_radius).max(1.0);
+        // Over the terrain under the eye (its smooth height), so flying
+        // slows down near the ground wherever the ground is.
+        let ground = self.world.source().base().surface_point(self.eye).length();
+        let altitude = (self.eye.length() - ground).max(1.0);
         let fast = self.keys.contains(&KeyCode::ShiftLeft);
         let speed = altitude * 0.6 * if fast { 10.0 } else { 1.0 };
         let right = forward.cross(up).normalize();
@@ -527,9 +534,19 @@ impl Windowed {
                 }
             }
         } else {
-            let next = self.eye + motion.normalize_or_zero() * speed * dt;
-            if next.length() > min_radius + 0.5 {
-                self.eye = next;
+            let step = motion.normalize_or_zero() * speed * dt;
+            if step.length() < FLY_COLLIDE_BELOW_STEP {
+                // Slow enough to be near the ground: the eye is a small box
+                // that slides along blocks instead of entering them.
+                let body = Body { feet: self.eye - up * 0.25, half_width: 0.25, height: 0.5 };
+                match move_body(self.world.source(), body, step) {
+                    Ok(moved) => self.eye = moved.feet + up * 0.25,
+                    Err(error) => eprintln!("nebula-demo: flying collision failed: {error}"),
+                }
+            } else if (self.eye + step).length() > min_radius + 0.5
+                && !is_solid(self.world.source(), self.eye + step).unwrap_or(true)
+            {
+                self.eye += step;
             }
         }
         // What a click would edit: the first solid voxel at the crosshair,
