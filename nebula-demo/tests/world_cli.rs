@@ -114,12 +114,7 @@ fn pick_edit_and_info_agree_with_the_library_and_persist() {
 
 /// One line of an edit script and the edit it stands for.
 fn script_line(state: &mut u64, library: &World) -> (String, Edit) {
-    let mut unit = || {
-        *state ^= *state << 13;
-        *state ^= *state >> 7;
-        *state ^= *state << 17;
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = || nebula_math::unit_random(state);
     let up = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
     let centre = library.source().base().surface_point(up);
     let radius = 1.5 + unit() * 4.0;

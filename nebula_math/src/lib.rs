@@ -53,6 +53,17 @@ pub use face::{CubeCorner, CubeFace, EdgeNeighbor, FaceDirection, FaceEdge};
 pub use glam::{DVec3, I64Vec3, IVec3, Vec3};
 pub use lattice::{Cubesphere, LatticePoint, MAX_RESOLUTION, ray_sphere, relative_position, view_basis};
 pub use sphere_map::{SphereMap, area_distortion};
+
+/// The next number in [0, 1) of a fixed xorshift64 sequence: sample
+/// places that must not depend on any seed (slope sampling, test poses), the
+/// same on every machine.
+#[must_use]
+pub fn unit_random(state: &mut u64) -> f64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    (*state >> 11) as f64 / (1u64 << 53) as f64
+}
 pub use sse::{
     MORPH_FULL, ScreenSpace, horizon_distance, morph_factor, projection_constant, projection_constant_small_angle,
 };

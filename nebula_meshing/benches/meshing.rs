@@ -83,12 +83,7 @@ fn surface_chunk(planet: &ProceduralPlanet, column: ChunkColumn) -> ChunkVoxels 
 fn noisy_chunk(key: ChunkKey) -> ChunkVoxels {
     let mut state = 0x2545_F491_4F6C_DD1D_u64;
     let voxels = (0..PADDED_CHUNK_VOLUME)
-        .map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            if state.is_multiple_of(2) { Voxel::STONE } else { Voxel::AIR }
-        })
+        .map(|_| if nebula_math::unit_random(&mut state) < 0.5 { Voxel::STONE } else { Voxel::AIR })
         .collect();
     ChunkVoxels::from_voxels(key, voxels).expect("right size")
 }

@@ -657,12 +657,7 @@ fn vertices_that_collapse_onto_one_target_are_drawn_bit_identical_at_mu_zero() {
     // which must miss on some of the same groups.
     let earth = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
     let mut state = 0x9e37_79b9_u64;
-    let mut unit = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = || nebula_math::unit_random(&mut state);
     let (mut groups, mut control_misses) = (0, 0);
     for case in 0..8u32 {
         let lod = 1 + (case % 4) as u8;

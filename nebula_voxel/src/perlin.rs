@@ -131,7 +131,7 @@ mod tests {
     #[test]
     fn matches_the_noise_crate() {
         let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = || crate::planet::unit_random(&mut state);
+        let mut next = || nebula_math::unit_random(&mut state);
         for seed in [0, 11, 12, 13, 0xdead_beef] {
             let (ours, theirs) = (BranchlessPerlin::new(seed), Perlin::new(seed));
             for n in 0..200_000 {

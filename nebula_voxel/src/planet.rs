@@ -403,7 +403,7 @@ impl ProceduralPlanet {
         // on luck with the terrain seed's own random numbers).
         let n = f64::from(self.layout.sphere().resolution());
         let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = || unit_random(&mut state);
+        let mut next = || nebula_math::unit_random(&mut state);
         let mut steepest = 0.0_f64;
         for sample in 0..4096 {
             let face = CubeFace::ALL[sample % 6];
@@ -415,15 +415,6 @@ impl ProceduralPlanet {
         }
         steepest * 1.5
     }
-}
-
-/// The next number in [0, 1) of a fixed xorshift sequence: places to
-/// sample that do not depend on any seed.
-pub(crate) fn unit_random(state: &mut u64) -> f64 {
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    (*state >> 11) as f64 / (1u64 << 53) as f64
 }
 
 fn smoothstep(x: f64) -> f64 {

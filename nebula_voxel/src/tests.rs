@@ -383,12 +383,7 @@ fn pick_by_sampling(
 /// straight down to grazing and a few upwards.
 fn ground_rays(planet: &ProceduralPlanet, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
     let mut state = seed;
-    let mut unit = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = move || nebula_math::unit_random(&mut state);
     (0..count)
         .map(|n| {
             let mut direction = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
@@ -497,12 +492,7 @@ fn pick_sees_a_block_placed_far_above_the_terrain() {
     for planet in [small().clone(), ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap()] {
         let mut edited = EditedSource::new(planet.clone());
         let mut state = 0xb10c_u64;
-        let mut unit = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = move || nebula_math::unit_random(&mut state);
         for _ in 0..8 {
             let up = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
             let block = planet.surface_point(up) + up * 300.0;

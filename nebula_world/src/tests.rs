@@ -14,10 +14,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn unit(state: &mut u64) -> f64 {
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    (*state >> 11) as f64 / (1u64 << 53) as f64
+    nebula_math::unit_random(state)
 }
 
 /// A world at `path` with spheres dug and boxes and single blocks placed

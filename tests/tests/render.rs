@@ -291,12 +291,7 @@ fn earth_fast_low_flights_are_crack_free_and_stay_in_the_mesh_budget() {
     // still complete.
     let settings = earth();
     let mut state = 0xf1_1e5_u64;
-    let mut unit = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = move || nebula_math::unit_random(&mut state);
     let budget = 64 << 20;
     let mut fullest = 0;
     for n in 0..3 {
