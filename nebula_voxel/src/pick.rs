@@ -122,6 +122,11 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
             let coarse_bounds = self.bounds_of(coarse)?;
             if coarse_lod > 0 && h > coarse_bounds.max_layer {
                 let (exit, wall) = self.column_exit(coarse, t);
+                if !exit.is_finite() {
+                    // Up inside the column's wedge for ever, above its
+                    // ground: nothing to hit.
+                    return Ok(None);
+                }
                 if self.lowest_radius(t, exit) > coarse_bounds.max_radius {
                     if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {
                         return Ok(None);
@@ -142,6 +147,9 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
                 // Above every solid voxel of the column: skip the column if
                 // the ray does not come down into its surface range in it.
                 let (exit, wall) = self.column_exit(column, t);
+                if !exit.is_finite() {
+                    return Ok(None);
+                }
                 let lowest = self.lowest_radius(t, exit);
                 if lowest > bounds.max_radius {
                     if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {

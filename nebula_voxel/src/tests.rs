@@ -506,3 +506,13 @@ fn pick_sees_a_block_placed_far_above_the_terrain() {
         }
     }
 }
+
+#[test]
+fn a_ray_straight_up_along_an_axis_misses() {
+    // It never leaves its column's wedge (an infinite exit): no hit, not
+    // an error.
+    for axis in [DVec3::X, DVec3::Y, DVec3::Z, -DVec3::X] {
+        let origin = small().surface_point(axis) + axis * 10.0;
+        assert_eq!(pick(small(), origin, axis, 10_000.0).unwrap(), None, "{axis}");
+    }
+}

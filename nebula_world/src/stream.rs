@@ -166,6 +166,10 @@ pub struct MeshCache<H> {
     /// Drawn chunks an edit changed: the old mesh stays on screen until one
     /// of at least this voxel generation replaces it.
     stale: HashMap<ChunkKey, u64>,
+    /// Every chunk an edit changed, with the voxel generation its mesh must
+    /// be made from: a job that read older voxels (it was running when the
+    /// edit came) is thrown away, never cached as current.
+    required: HashMap<ChunkKey, u64>,
 }
 
 impl<H: MeshHandle> MeshCache<H> {
@@ -398,6 +402,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 max_chunks: 12_000,
                 max_bytes: MeshCache::<H>::default_max_bytes(),
                 stale: HashMap::new(),
+                required: HashMap::new(),
             },
             draw: DrawList::default(),
             times: StageTimes::default(),
@@ -512,11 +517,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         for key in dirty {
             let column = key.column();
+            self.cache.required.insert(*key, self.generation);
             if drawn.contains(&column)
                 && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains_key(&key.layer))
             {
                 self.cache.stale.insert(*key, self.generation);
             }
+        }
+        // The next job a worker takes reads the new voxels.
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.voxels = Some((self.voxels.clone(), self.generation));
         }
         Ok(())
     }
@@ -614,6 +624,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn store(&mut self, done: MeshResult, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
         let key = done.key;
         let column = key.column();
+        if let Some(&wanted) = self.cache.required.get(&key) {
+            if done.generation < wanted {
+                // Made from voxels before an edit: asked for again.
+                return false;
+            }
+            self.cache.required.remove(&key);
+        }
         let (mesh, failed) = match done.result {
             Ok(mesh) => (mesh, false),
             Err(error) => {
@@ -776,8 +793,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
         }
         // Drawn chunks an edit changed go first: the player is looking at
-        // them.
-        for (&key, _) in cache.stale.iter().filter(|(key, _)| set.contains(&key.column())) {
+        // them. One no longer drawn is dropped, to be meshed when needed.
+        let undrawn: Vec<ChunkKey> = cache.stale.keys().filter(|key| !set.contains(&key.column())).copied().collect();
+        for key in undrawn {
+            cache.stale.remove(&key);
+            if let Some(cached) = cache.columns.get_mut(&key.column()) {
+                cached.chunks.remove(&key.layer);
+            }
+        }
+        for &key in cache.stale.keys() {
             jobs.push(Job { priority: f64::MAX, key });
         }
         if let Ok(mut state) = self.meshing.state.lock() {
@@ -827,7 +851,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     // It stays in the running set until collected, so no
                     // queue refresh asks for it again while it waits in the
                     // channel.
-                    let _ = sender.send(MeshResult { key: job.key, generation, result, millis });
+                    if sender.send(MeshResult { key: job.key, generation, result, millis }).is_err() {
+                        // The streamer is gone: stop meshing its queue.
+                        break;
+                    }
                 }
                 workers.fetch_sub(1, Ordering::AcqRel);
             });

@@ -90,8 +90,8 @@ pub struct Moved {
 /// stops at the block and the others go on (sliding along walls).
 ///
 /// # Errors
-/// [`VoxelError`] for a NaN or infinite motion or body, a body more than
-/// 16 m across, or a source error.
+/// [`VoxelError`] for a NaN or infinite motion or body, a motion over
+/// 16 m, a half width or height over 16 m, or a source error.
 pub fn move_body<S: VoxelSource + ?Sized>(source: &S, body: Body, motion: DVec3) -> Result<Moved, VoxelError> {
     for (name, value) in [("half width", body.half_width), ("height", body.height)] {
         if !value.is_finite() {
@@ -103,6 +103,15 @@ pub fn move_body<S: VoxelSource + ?Sized>(source: &S, body: Body, motion: DVec3)
     }
     if let Some(&bad) = motion.to_array().iter().find(|v| !v.is_finite()) {
         return Err(VoxelError::NonFinite { name: "motion", value: bad });
+    }
+    // The voxels searched grow with the cube of the motion: one step is a
+    // frame's worth, not a teleport.
+    if motion.length() > 16.0 {
+        return Err(VoxelError::OutOfRange {
+            name: "motion",
+            requirement: "at most 16 m per call",
+            value: motion.length(),
+        });
     }
     let (east, north, up) = local_frame(body.feet)?;
     let axes = [east, north, up];
