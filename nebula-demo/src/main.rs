@@ -23,7 +23,7 @@ use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png}
 use nebula_demo::planet_settings;
 use nebula_math::DVec3;
 use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
-use nebula_world::walk::{Body, Walker, is_solid, move_body};
+use nebula_world::walk::{Body, Walker, is_solid, local_frame, move_body};
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
@@ -455,10 +455,9 @@ impl Windowed {
     /// North, east and up (radial) at the eye; "north" is towards +Z, or
     /// +X right above a Z pole.
     fn local_frame(&self) -> (DVec3, DVec3, DVec3) {
-        let up = self.eye.normalize();
-        let reference = if up.cross(DVec3::Z).length() > 1e-3 { DVec3::Z } else { DVec3::X };
-        let north = (reference - up * reference.dot(up)).normalize();
-        (north, north.cross(up), up)
+        // The eye never reaches the centre (it stays above the ground).
+        let (east, north, up) = local_frame(self.eye).unwrap_or((DVec3::X, DVec3::Z, DVec3::Y));
+        (north, east, up)
     }
 
     fn set_forward(&mut self, forward: DVec3) {
