@@ -475,15 +475,16 @@ impl Windowed {
             (false, Some(at)) => Edit::Voxel { at, voxel: self.material },
             (false, None) => return,
         };
-        let applied = match self.world.apply(&[edit]) {
-            Ok(applied) => applied,
+        let dirty = match self.world.apply(&[edit]) {
+            Ok(applied) => applied.dirty,
             Err(error) => {
+                // What it did apply is shown all the same.
                 eprintln!("nebula-demo: the edit failed: {error}");
-                return;
+                self.world.take_unreported()
             }
         };
         if let Some(state) = self.state.as_mut()
-            && let Err(error) = state.app.set_voxels(self.world.voxels(), &applied.dirty)
+            && let Err(error) = state.app.set_voxels(self.world.voxels(), &dirty)
         {
             eprintln!("nebula-demo: showing the edit failed: {error:#}");
         }

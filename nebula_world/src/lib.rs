@@ -120,6 +120,9 @@ pub struct World<S = ProceduralPlanet> {
     store: Option<WorldStore>,
     /// LOD-0 chunks edited but not yet saved (after a failed save).
     unsaved: BTreeSet<ChunkKey>,
+    /// Chunks edits changed that no [`Applied`] has reported yet (an apply
+    /// that failed part way kept its earlier edits).
+    unreported: BTreeSet<ChunkKey>,
 }
 
 impl World<ProceduralPlanet> {
@@ -158,7 +161,7 @@ impl<S: VoxelSource + Clone> World<S> {
                 Some(store)
             }
         };
-        Ok(Self { source: Arc::new(source), store, unsaved: BTreeSet::new() })
+        Ok(Self { source: Arc::new(source), store, unsaved: BTreeSet::new(), unreported: BTreeSet::new() })
     }
 
     /// The voxels with every edit applied: what meshing, picking and
@@ -194,15 +197,18 @@ impl<S: VoxelSource + Clone> World<S> {
     }
 
     /// Applies `edits` in order and saves them as one transaction. Returns
-    /// the chunks to re-mesh.
+    /// the chunks to re-mesh (with those of earlier applies that failed part
+    /// way).
     ///
     /// # Errors
     /// [`WorldError::Voxel`] for a bad edit: the edits before it stay
     /// applied and are saved. [`WorldError::Storage`] if the save fails:
     /// the edits stay applied in memory and are saved with the next
-    /// successful [`World::apply`] or [`World::save`].
+    /// successful [`World::apply`] or [`World::save`]. Either way the
+    /// chunks the applied edits changed are kept for
+    /// [`World::take_unreported`] or the next successful apply.
     pub fn apply(&mut self, edits: &[Edit]) -> Result<Applied, WorldError> {
-        let mut dirty = BTreeSet::new();
+        let mut dirty = std::mem::take(&mut self.unreported);
         let mut failure = None;
         let source = Arc::make_mut(&mut self.source);
         for edit in edits {
@@ -220,11 +226,20 @@ impl<S: VoxelSource + Clone> World<S> {
             }
         }
         self.unsaved.extend(dirty.iter().filter(|key| key.lod == 0).copied());
-        let saved_chunks = self.save()?;
-        match failure {
-            Some(error) => Err(error),
-            None => Ok(Applied { dirty: dirty.into_iter().collect(), saved_chunks }),
+        let saved = self.save();
+        match (saved, failure) {
+            (Ok(saved_chunks), None) => Ok(Applied { dirty: dirty.into_iter().collect(), saved_chunks }),
+            (Err(error), _) | (Ok(_), Some(error)) => {
+                self.unreported = dirty;
+                Err(error)
+            }
         }
+    }
+
+    /// The chunks that edits of failed applies changed (they stay applied),
+    /// for a renderer to re-mesh; empties the list.
+    pub fn take_unreported(&mut self) -> Vec<ChunkKey> {
+        std::mem::take(&mut self.unreported).into_iter().collect()
     }
 
     /// Saves every edited chunk not saved yet. Returns how many chunks

@@ -156,6 +156,10 @@ fn bad_edits_are_errors_and_the_good_ones_before_them_are_kept() {
     assert!(matches!(result, Err(WorldError::Voxel(_))), "{result:?}");
     let kept = world.edit_count();
     assert!(kept > 0);
+    // The chunks the kept edits changed are not lost for the renderer.
+    let unreported = world.take_unreported();
+    assert!(!unreported.is_empty(), "the chunks of the kept crater were lost");
+    assert!(world.take_unreported().is_empty());
     for bad in [
         Edit::Box { min: ground, max: ground - DVec3::ONE, voxel: Voxel::STONE },
         Edit::Box { min: ground, max: ground + DVec3::splat(1e6), voxel: Voxel::STONE },
