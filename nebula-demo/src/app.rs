@@ -11,6 +11,7 @@ use nebula_lod::{Camera, LodSettings};
 use nebula_math::DVec3;
 use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh};
 use nebula_voxel::{ChunkKey, EditedSource, ProceduralPlanet};
+pub use nebula_world::ecs::PlanetStream;
 pub use nebula_world::stream::{
     DrawList, DrawOptions, MeshCache, MorphRule, STAND_IN_LEVEL_STEP, StageTimes, StreamFigures as FrameFigures,
     Streamer,
@@ -22,9 +23,8 @@ use crate::gpu::{DebugView, FrameParams, Gpu, GpuMesh};
 /// edits (none without `--world`).
 pub type PlanetVoxels = EditedSource<ProceduralPlanet>;
 
-/// The planet streamed onto the GPU.
-#[derive(Resource)]
-pub struct Stream(pub Streamer<PlanetVoxels, GpuMesh>);
+/// The planet streamed onto the GPU (`nebula_world`'s ECS resource).
+pub type Stream = PlanetStream<PlanetVoxels, GpuMesh>;
 
 /// The camera this frame.
 #[derive(Resource, Clone, Copy)]
@@ -76,7 +76,7 @@ impl PlanetApp {
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
         let streamer = Streamer::new(planet, settings, view.camera, threads, &mut |key, mesh| upload(&gpu, key, mesh))?;
         let mut world = World::new();
-        world.insert_resource(Stream(streamer));
+        world.insert_resource(PlanetStream(streamer));
         world.insert_resource(view);
         world.insert_resource(GpuRes(gpu));
         let mut schedule = Schedule::default();

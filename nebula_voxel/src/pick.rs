@@ -16,7 +16,7 @@
 
 use std::collections::HashMap;
 
-use nebula_math::{CubeFace, DVec3, FaceDirection};
+use nebula_math::{CubeFace, DVec3, FaceDirection, ray_sphere};
 
 use crate::{CHUNK_SIZE, ChunkColumn, SurfaceBounds, VoxelCoord, VoxelError, VoxelSource};
 
@@ -103,7 +103,7 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
         }
         let mut t = 0.0;
         if self.origin.length() > top {
-            match entry_into_sphere(self.origin, self.dir, top) {
+            match ray_sphere(self.origin, self.dir, top) {
                 Some(entry) => t = entry,
                 None => return Ok(None),
             }
@@ -121,19 +121,13 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
             let coarse = ChunkColumn { face, lod: coarse_lod, x: (i >> shift) as u32, y: (j >> shift) as u32 };
             let coarse_bounds = self.bounds_of(coarse)?;
             if coarse_lod > 0 && h > coarse_bounds.max_layer {
-                let (exit, wall) = self.column_exit(coarse, t);
-                if !exit.is_finite() {
-                    // Up inside the column's wedge for ever, above its
-                    // ground: nothing to hit.
-                    return Ok(None);
-                }
-                if self.lowest_radius(t, exit) > coarse_bounds.max_radius {
-                    if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {
-                        return Ok(None);
+                match self.skip_column(coarse, coarse_bounds.max_radius, t, top)? {
+                    Skip::Miss => return Ok(None),
+                    Skip::Across { t: exit, wall, last, next } => {
+                        (cell, t, entered, before) = (next, exit, Some(wall), Some(voxel_at(last)));
+                        continue;
                     }
-                    let (last, next) = self.across_column_wall(coarse, wall, exit)?;
-                    (cell, t, entered, before) = (next, exit, Some(wall), Some(voxel_at(last)));
-                    continue;
+                    Skip::Into { .. } => {}
                 }
             }
             let column = ChunkColumn {
@@ -146,22 +140,17 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
             if h > bounds.max_layer {
                 // Above every solid voxel of the column: skip the column if
                 // the ray does not come down into its surface range in it.
-                let (exit, wall) = self.column_exit(column, t);
-                if !exit.is_finite() {
-                    return Ok(None);
-                }
-                let lowest = self.lowest_radius(t, exit);
-                if lowest > bounds.max_radius {
-                    if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {
-                        return Ok(None);
+                let exit = match self.skip_column(column, bounds.max_radius, t, top)? {
+                    Skip::Miss => return Ok(None),
+                    Skip::Across { t: exit, wall, last, next } => {
+                        (cell, t, entered, before) = (next, exit, Some(wall), Some(voxel_at(last)));
+                        continue;
                     }
-                    let (last, next) = self.across_column_wall(column, wall, exit)?;
-                    (cell, t, entered, before) = (next, exit, Some(wall), Some(voxel_at(last)));
-                    continue;
-                }
+                    Skip::Into { exit } => exit,
+                };
                 // It does: go straight down to where it reaches the top of
                 // the column's surface range, if that is in this column.
-                let down = entry_into_sphere(self.at(t), self.dir, bounds.max_radius).map(|dt| t + dt);
+                let down = ray_sphere(self.at(t), self.dir, bounds.max_radius).map(|dt| t + dt);
                 if let Some(down) = down.filter(|&down| down < exit && h > bounds.max_layer + 1) {
                     let point = self.at(down);
                     let size = i64::from(CHUNK_SIZE);
@@ -191,6 +180,27 @@ impl<'a, S: VoxelSource + ?Sized> Walker<'a, S> {
             (t, entered) = (exit, Some(wall));
         }
         Ok(None)
+    }
+
+    /// Whether the ray, at `t` inside `column` and above `max_radius` (the
+    /// column's surface bounds), skips the column: it stays above them all
+    /// the way through it.
+    fn skip_column(&self, column: ChunkColumn, max_radius: f64, t: f64, top: f64) -> Result<Skip, VoxelError> {
+        let (exit, wall) = self.column_exit(column, t);
+        if !exit.is_finite() {
+            // Up inside the column's wedge for ever, above its ground:
+            // nothing to hit.
+            return Ok(Skip::Miss);
+        }
+        if self.lowest_radius(t, exit) <= max_radius {
+            return Ok(Skip::Into { exit });
+        }
+        if self.at(exit).length() > top && self.dir.dot(self.at(exit)) > 0.0 {
+            // Leaving above all terrain, going up.
+            return Ok(Skip::Miss);
+        }
+        let (last, next) = self.across_column_wall(column, wall, exit)?;
+        Ok(Skip::Across { t: exit, wall, last, next })
     }
 
     fn at(&self, t: f64) -> DVec3 {
@@ -356,17 +366,19 @@ fn column_cells(column: ChunkColumn) -> i64 {
     i64::from(CHUNK_SIZE) << column.lod
 }
 
+/// What [`Walker::skip_column`] found.
+enum Skip {
+    /// Nothing more to hit.
+    Miss,
+    /// The ray comes down into the column's surface range before `exit`.
+    Into { exit: f64 },
+    /// The ray stays above: go on at `t` in `next`, after `last`.
+    Across { t: f64, wall: Wall, last: Cell, next: Cell },
+}
+
 /// A LOD-0 voxel while walking: face, i, j, layer (unchecked).
 type Cell = (CubeFace, i64, i64, i64);
 
 fn voxel_at((face, i, j, h): Cell) -> VoxelCoord {
     VoxelCoord { face, lod: 0, i: i as u32, j: j as u32, h: h.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32 }
-}
-
-/// The first t ≥ 0 at which the ray from `origin` along unit `dir` is
-/// within `radius` of the centre (the origin is outside).
-fn entry_into_sphere(origin: DVec3, dir: DVec3, radius: f64) -> Option<f64> {
-    let b = origin.dot(dir);
-    let disc = b * b - origin.length_squared() + radius * radius;
-    (disc >= 0.0 && -b - disc.sqrt() >= 0.0).then(|| -b - disc.sqrt())
 }
