@@ -8,7 +8,9 @@
 //! (24.3 M voxels/s; with `noise::Perlin` they were 1.38 and 3.10 ms: its
 //! gradient `match` mispredicts where samples are far apart); both surface
 //! layers of a column 1.43 / 1.49 ms (heights computed once); 64 LOD-2
-//! chunks on rayon 1.7× faster than sequentially on 2 threads.
+//! chunks on rayon 1.7× faster than sequentially on 2 threads. With the
+//! heights of a chunk's columns computed octave by octave, sharing noise
+//! cells (`perlin::Fractal::get_many`): LOD 0 1.14 ms, LOD 8 1.25 ms.
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};

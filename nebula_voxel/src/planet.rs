@@ -69,10 +69,8 @@
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
+use crate::perlin::Fractal;
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
-use noise::{Fbm, MultiFractal, NoiseFn, RidgedMulti};
-
-use crate::perlin::BranchlessPerlin as Perlin;
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, MAX_LOD, PADDED_CHUNK_SIZE, PaddedChunkShape,
@@ -139,9 +137,9 @@ impl PlanetSettings {
 pub struct ProceduralPlanet {
     settings: PlanetSettings,
     layout: ChunkLayout,
-    continents: Fbm<Perlin>,
-    ridges: RidgedMulti<Perlin>,
-    hills: Fbm<Perlin>,
+    continents: Fractal,
+    ridges: Fractal,
+    hills: Fractal,
     /// `radius / detail_size`: unit direction → hill noise space.
     detail_scale: f64,
     /// Metres per radial layer (= voxel size at LOD 0).
@@ -271,13 +269,10 @@ impl ProceduralPlanet {
         let layout = ChunkLayout::new(sphere, max_lod)?;
         // Enough octaves that the finest wavelength is about 4 voxels.
         let octaves = (settings.feature_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 16.0) as usize;
-        let continents =
-            Fbm::<Perlin>::new(settings.seed).set_octaves(octaves).set_persistence(0.45).set_lacunarity(2.0);
-        let ridges = RidgedMulti::<Perlin>::new(settings.seed.wrapping_add(1))
-            .set_octaves(octaves.saturating_sub(1).max(1))
-            .set_lacunarity(2.0);
+        let continents = Fractal::fbm(settings.seed, octaves, 0.45, 2.0);
+        let ridges = Fractal::ridged(settings.seed.wrapping_add(1), octaves.saturating_sub(1).max(1), 2.0);
         let hill_octaves = (settings.detail_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 12.0) as usize;
-        let hills = Fbm::<Perlin>::new(settings.seed.wrapping_add(2)).set_octaves(hill_octaves).set_persistence(0.5);
+        let hills = Fractal::fbm(settings.seed.wrapping_add(2), hill_octaves, 0.5, std::f64::consts::PI * 2.0 / 3.0);
         let mut planet = Self {
             detail_scale: radius / settings.detail_size,
             hills,
@@ -327,10 +322,38 @@ impl ProceduralPlanet {
     #[must_use]
     pub fn height_at(&self, direction: nebula_math::DVec3) -> f64 {
         let p = direction * self.noise_scale;
-        let continents = self.continents.get(p.to_array());
-        let ridges = (self.ridges.get((p * 2.0).to_array()) + 1.0) * 0.5;
+        self.combine(
+            self.continents.get(p.to_array()),
+            self.ridges.get((p * 2.0).to_array()),
+            self.hills.get((direction * self.detail_scale).to_array()),
+        )
+    }
+
+    /// [`Self::height_at`] of many unit directions, into `out` (same
+    /// length), bit-identical: each octave runs over all of them, and a run
+    /// of neighbouring columns in one noise cell pays its corner hashes
+    /// once ([`Fractal::get_many`]). A chunk's columns cost 15 % less so
+    /// (measured: LOD 0 1.35 → 1.14 ms, LOD 8 1.35 → 1.25 ms); the rest is
+    /// the blend arithmetic, 39 octaves per column.
+    fn heights_at(&self, directions: &[nebula_math::DVec3], out: &mut [f64]) {
+        let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
+        let n = directions.len();
+        let (mut continents, mut ridges, mut hills) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        self.continents.get_many(&points(self.noise_scale), &mut continents);
+        // (d · s) · 2, as `height_at` rounds it.
+        let ridge_points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * self.noise_scale * 2.0).to_array()).collect();
+        self.ridges.get_many(&ridge_points, &mut ridges);
+        self.hills.get_many(&points(self.detail_scale), &mut hills);
+        for (k, height) in out.iter_mut().enumerate().take(n) {
+            *height = self.combine(continents[k], ridges[k], hills[k]);
+        }
+    }
+
+    /// The height from the three noise sums at a point (module docs).
+    fn combine(&self, continents: f64, ridges: f64, hills: f64) -> f64 {
+        let ridges = (ridges + 1.0) * 0.5;
         let mask = smoothstep(continents / 0.3);
-        let hills = self.hills.get((direction * self.detail_scale).to_array()).clamp(-1.0, 1.0);
+        let hills = hills.clamp(-1.0, 1.0);
         self.settings.amplitude * (0.6 * continents + 0.4 * ridges * mask).clamp(-1.0, 1.0)
             + self.settings.detail_amplitude * hills
     }
@@ -347,11 +370,16 @@ impl ProceduralPlanet {
     /// face stands in: such voxels are never face neighbours of a chunk's
     /// own.
     fn column_height(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> f64 {
+        self.height_at(self.column_direction(face, lod, ci, cj)) / self.layer_height
+    }
+
+    /// The unit direction [`Self::column_height`] samples.
+    fn column_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> nebula_math::DVec3 {
         let per_edge = i64::from(self.layout.voxels_per_edge(lod));
         let (face, ci, cj) =
             face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
         let span = self.layout.voxel_span(lod) as f64;
-        self.height_layers(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
+        self.layout.sphere().direction(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
     }
 
     /// The heights of `column`'s padded voxel columns (x fastest, as
@@ -363,9 +391,12 @@ impl ProceduralPlanet {
         let size = i64::from(CHUNK_SIZE);
         let (base_i, base_j) = (i64::from(column.x) * size - 1, i64::from(column.y) * size - 1);
         let padded = i64::from(PADDED_CHUNK_SIZE);
-        let heights: Arc<[f64]> = (0..padded * padded)
-            .map(|n| self.column_height(column.face, column.lod, base_i + n % padded, base_j + n / padded))
+        let directions: Vec<_> = (0..padded * padded)
+            .map(|n| self.column_direction(column.face, column.lod, base_i + n % padded, base_j + n / padded))
             .collect();
+        let mut heights = vec![0.0; directions.len()];
+        self.heights_at(&directions, &mut heights);
+        let heights: Arc<[f64]> = heights.into_iter().map(|h| h / self.layer_height).collect();
         self.heights.insert(column, heights.clone());
         heights
     }
@@ -494,5 +525,34 @@ impl VoxelSource for ProceduralPlanet {
         }
         let span = self.layout.voxel_span(lod) as f64;
         (span + 2.0 * self.max_slope * (span - 1.0)) * self.layer_height
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batched heights a chunk is filled from are [`ProceduralPlanet::height_at`]
+    /// bit for bit (the voxel-level check is `filled_chunks_equal_voxels_read_one_by_one`;
+    /// this one also sees differences too small to flip a voxel).
+    #[test]
+    fn batched_heights_are_height_at_bit_for_bit() {
+        for planet in [PlanetSettings::earth(9), PlanetSettings::small(9)].map(|s| ProceduralPlanet::new(s).unwrap()) {
+            for (n, lod) in [0u8, 2, 7, 12].into_iter().enumerate() {
+                let lod = lod.min(planet.layout.max_lod());
+                let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
+                let face = CubeFace::ALL[n];
+                // A padded chunk's columns, at a face edge for the last one.
+                let base = if n == 3 { (-1, per_edge - 33) } else { (per_edge / 5, per_edge / 2) };
+                let directions: Vec<_> = (0..34 * 34)
+                    .map(|k| planet.column_direction(face, lod, base.0 + k % 34, base.1 + k / 34))
+                    .collect();
+                let mut heights = vec![0.0; directions.len()];
+                planet.heights_at(&directions, &mut heights);
+                for (direction, height) in directions.iter().zip(&heights) {
+                    assert_eq!(height.to_bits(), planet.height_at(*direction).to_bits(), "lod {lod} at {direction}");
+                }
+            }
+        }
     }
 }

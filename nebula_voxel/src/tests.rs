@@ -268,6 +268,35 @@ fn cached_heights_give_the_same_voxels() {
     assert!(checked > 336, "only {checked} chunks checked");
 }
 
+/// A chunk's voxels, whose column heights are computed all at once
+/// (octave by octave, sharing noise cells), equal the voxels read one at a
+/// time: Earth and the small planet, surface chunks from LOD 0 to near the
+/// coarsest, on every face.
+#[test]
+fn filled_chunks_equal_voxels_read_one_by_one() {
+    let mut checked = 0;
+    for (planet, lods) in [
+        (ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap(), [0u8, 3, 9, 16]),
+        (ProceduralPlanet::new(PlanetSettings::small(5)).unwrap(), [0u8, 1, 3, 5]),
+    ] {
+        let layout = *planet.layout();
+        for (n, lod) in lods.into_iter().enumerate() {
+            let per_edge = layout.chunks_per_edge(lod);
+            let face = CubeFace::ALL[(n + usize::from(lod)) % 6];
+            let column = ChunkColumn { face, lod, x: per_edge / 3, y: (per_edge * 2 / 3).min(per_edge - 1) };
+            let key = column.chunk(*planet.surface_chunk_layers(column).unwrap().start());
+            let mut voxels = ChunkVoxels::new(key);
+            planet.fill_chunk(key, &mut voxels).unwrap();
+            for (x, y, z) in (0..32u32).flat_map(|x| (0..32u32).flat_map(move |y| (0..32u32).map(move |z| (x, y, z)))) {
+                let at = VoxelCoord { face, lod, i: key.x * 32 + x, j: key.y * 32 + z, h: key.layer * 32 + y as i32 };
+                assert_eq!(voxels.get([x + 1, y + 1, z + 1]), Some(planet.voxel(at).unwrap()), "{at:?}");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 8 * 32 * 32 * 32);
+}
+
 fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }
