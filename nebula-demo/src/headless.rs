@@ -318,6 +318,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "skirt_triangles": f.skirt_triangles,
         "skirt_triangles_held": f.skirt_triangles_held,
         "stand_ins": f.stand_ins,
+        "behind_horizon": f.behind_horizon,
         "lod_histogram": histogram,
         "max_neighbor_lod_diff": f.max_neighbor_lod_diff,
         "cpu_ms": {

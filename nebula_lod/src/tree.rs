@@ -227,6 +227,37 @@ impl LodTree {
         Some((along % count, count))
     }
 
+    /// The sphere whose horizon hides what lies behind it from `eye`,
+    /// for refinement: the deepest LOD-0 surface
+    /// ([`VoxelSource::lowest_surface_radius`]) lowered by δ of the
+    /// coarsest LOD this tree draws out to that sphere's horizon (coarse
+    /// voxels round the drawn surface down by up to δ). `None` where the
+    /// source knows no such depth or the eye is below it.
+    ///
+    /// Why: the planet-wide lowest bound of the tree
+    /// ([`LodTree::min_surface_radius`]) is hundreds of kilometres deep on
+    /// an Earth (a coarse node's bound allows for its voxel and slope), so
+    /// its horizon hides next to nothing near the ground. This one is the
+    /// real horizon of the terrain. It is not a proof that the drawn
+    /// surface hides everything behind it (a coarse stand-in can dip
+    /// lower), so what it hides should be drawn coarse, not left out.
+    #[must_use]
+    pub fn horizon_occluder<S: VoxelSource + ?Sized>(&self, source: &S, eye: DVec3) -> Option<f64> {
+        let lowest = source.lowest_surface_radius()?;
+        let d = eye.length();
+        if d <= lowest {
+            return None;
+        }
+        // How far the horizon is: the tangent from the eye to the sphere,
+        // then as far again for terrain up to the eye's height beyond it.
+        let reach = 2.0 * (d * d - lowest * lowest).sqrt();
+        // The coarsest LOD drawn within reach: nodes closer than their
+        // split distance are split.
+        let lod =
+            (0..=self.layout.max_lod()).find(|&l| self.split_distance(l) > reach).unwrap_or(self.layout.max_lod());
+        Some((lowest - source.geometric_error(lod)).max(self.min_surface_radius))
+    }
+
     /// The leaf chunks in view at the last [`LodTree::cull`].
     #[must_use]
     pub fn visible_chunks(&self) -> Vec<ChunkKey> {

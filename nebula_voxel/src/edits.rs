@@ -348,4 +348,11 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
     fn geometric_error(&self, lod: u8) -> f64 {
         self.base.geometric_error(lod)
     }
+
+    fn lowest_surface_radius(&self) -> Option<f64> {
+        // Digging opens surface down to the lowest edited layer.
+        let lowest_edit = self.touched_columns.values().map(|&(low, _)| low).min();
+        let base = self.base.lowest_surface_radius()?;
+        Some(lowest_edit.map_or(base, |layer| base.min(self.layout().sphere().layer_radius(layer as f64))))
+    }
 }

@@ -519,6 +519,13 @@ impl VoxelSource for ProceduralPlanet {
         })
     }
 
+    fn lowest_surface_radius(&self) -> Option<f64> {
+        // H ≥ −(amplitude + detail amplitude); a LOD-0 top is within half
+        // a layer of H.
+        let depth = self.settings.amplitude + self.settings.detail_amplitude + self.layer_height;
+        Some(self.settings.radius - depth)
+    }
+
     fn geometric_error(&self, lod: u8) -> f64 {
         if lod == 0 {
             return 0.0;

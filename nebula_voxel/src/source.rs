@@ -49,6 +49,14 @@ pub trait VoxelSource: Send + Sync {
     /// from the LOD-0 voxel surface, measured radially. 0 at LOD 0.
     fn geometric_error(&self, lod: u8) -> f64;
 
+    /// A lower bound on the radius of the LOD-0 surface anywhere on the
+    /// planet (its deepest valley, edits included), metres, or `None` where
+    /// the source cannot tell. Renderers use it for the horizon that hides
+    /// the far side of the planet.
+    fn lowest_surface_radius(&self) -> Option<f64> {
+        None
+    }
+
     /// The radial chunk layers of `column` that can contain surface.
     ///
     /// # Errors

@@ -279,6 +279,13 @@ pub struct DrawList {
     pub max_stand_in_levels: u8,
     /// Lowest surface radius under the drawn columns.
     pub min_surface_radius: f64,
+    /// The sphere whose horizon hid leaves this frame
+    /// ([`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)),
+    /// metres; NaN where the source knows no lowest surface.
+    pub occluder_radius: f64,
+    /// Leaves in the frustum behind that horizon, drawn as their coarsest
+    /// hidden ancestor instead of being meshed.
+    pub behind_horizon: usize,
 }
 
 /// CPU time per stage, milliseconds, for the last frame (meshing: summed
@@ -321,6 +328,9 @@ pub struct StreamFigures {
     pub stand_ins: usize,
     /// Visible leaves with nothing drawn for them.
     pub holes: usize,
+    /// Leaves behind the terrain's horizon, drawn coarse
+    /// ([`DrawList::behind_horizon`]).
+    pub behind_horizon: usize,
     /// Largest LOD difference between neighbouring leaves.
     pub max_neighbor_lod_diff: u8,
     /// CPU time per stage.
@@ -591,6 +601,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             figures.lod_histogram[usize::from(key.lod)] += 1;
         }
         figures.stand_ins = self.draw.stand_ins;
+        figures.behind_horizon = self.draw.behind_horizon;
         figures.holes = self.draw.holes;
         figures.max_neighbor_lod_diff = self.tree.stats().max_neighbor_lod_diff;
         figures.times = self.times;
@@ -695,7 +706,31 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let mut ancestors: HashSet<ChunkColumn> = HashSet::new();
         let mut wanted: Vec<ChunkColumn> = Vec::new();
         let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
+        // Leaves behind the terrain's horizon are drawn as their coarsest
+        // ancestor that is hidden too: a few coarse chunks where the
+        // selection has thousands the eye cannot see. Coarse, not left out:
+        // where a coarse stand-in in front dips below that horizon, what
+        // shows through is coarse, never a hole.
+        let occluder = tree.horizon_occluder(voxels, eye);
+        let hidden = |column: ChunkColumn| {
+            occluder.is_some_and(|r| tree.node_bounds(column).is_some_and(|b| b.behind_horizon(eye, r)))
+        };
+        let mut behind_horizon = 0;
+        let mut hidden_tops: HashSet<ChunkColumn> = HashSet::new();
         for &leaf in tree.visible_leaves() {
+            let leaf = if hidden(leaf) {
+                behind_horizon += 1;
+                let mut top = leaf;
+                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hidden(up)) {
+                    top = up;
+                }
+                if !hidden_tops.insert(top) {
+                    continue;
+                }
+                top
+            } else {
+                leaf
+            };
             if let Some(cached) = cache.columns.get_mut(&leaf).filter(|c| c.ready()) {
                 // In use even when a stand-in covering it is drawn instead
                 // (a sibling is not ready): never freed while it is a leaf.
@@ -747,6 +782,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         columns.extend(ancestors.iter().copied().filter(|&c| !covered(c)));
         columns.sort_unstable();
         columns.dedup();
+        self.draw.behind_horizon = behind_horizon;
+        self.draw.occluder_radius = occluder.unwrap_or(f64::NAN);
         let set: HashSet<ChunkColumn> = columns.iter().copied().collect();
         let mut min_radius = f64::INFINITY;
         let options = self.options;
