@@ -277,7 +277,8 @@ pub struct DrawList {
     pub stand_ins: usize,
     /// Largest LOD gap between a visible leaf and the ancestor drawn for it.
     pub max_stand_in_levels: u8,
-    /// Lowest surface radius under the drawn columns.
+    /// Lowest surface radius under the drawn columns (those behind the
+    /// horizon left out).
     pub min_surface_radius: f64,
     /// The sphere whose horizon hid leaves this frame
     /// ([`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)),
@@ -794,11 +795,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     cached.last_used = frame;
                 }
                 // The tree's cached bounds; a stand-in the tree merged away
-                // asks the source (noise) once here.
+                // asks the source (noise) once here. A coarse chunk drawn
+                // behind the horizon is left out: its voxels round the
+                // surface far down, and the terrain in front hides it.
                 let low = tree
                     .node_bounds(column)
                     .map(|b| b.min_radius)
-                    .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius));
+                    .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
+                    .filter(|_| !hidden(column));
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
