@@ -153,10 +153,11 @@ pub struct ProceduralPlanet {
     heights: HeightCache,
 }
 
-/// Chunk columns whose heights [`HeightCache`] keeps: about 2.4 MB. A
+/// Chunk columns whose heights [`HeightCache`] keeps: about 19 MB. A
 /// streaming renderer asks for a column's layers one after another (they
-/// share a priority), so a few hundred columns catch nearly every repeat.
-const HEIGHT_CACHE_COLUMNS: usize = 256;
+/// share a priority), and for a column's parent a little before the column
+/// (coarse first): a view's worth of columns catches most of both.
+const HEIGHT_CACHE_COLUMNS: usize = 2048;
 
 /// The heights (in layers) of a chunk column's padded voxel columns, by
 /// column, for the chunks of its other radial layers.
@@ -391,12 +392,44 @@ impl ProceduralPlanet {
         let size = i64::from(CHUNK_SIZE);
         let (base_i, base_j) = (i64::from(column.x) * size - 1, i64::from(column.y) * size - 1);
         let padded = i64::from(PADDED_CHUNK_SIZE);
-        let directions: Vec<_> = (0..padded * padded)
-            .map(|n| self.column_direction(column.face, column.lod, base_i + n % padded, base_j + n / padded))
-            .collect();
-        let mut heights = vec![0.0; directions.len()];
-        self.heights_at(&directions, &mut heights);
-        let heights: Arc<[f64]> = heights.into_iter().map(|h| h / self.layer_height).collect();
+        let per_edge = i64::from(self.layout.voxels_per_edge(column.lod));
+        // Every other column (odd i and j) samples the same LOD-0 column
+        // as one of the parent's (see the module docs): with the parent's
+        // heights at hand, a quarter of the noise is already paid. Only
+        // columns on this face: a wrapped one is read in the other face's
+        // frame, where the two LODs' far corners need not agree.
+        let parent = (column.lod < self.layout.max_lod())
+            .then(|| ChunkColumn { face: column.face, lod: column.lod + 1, x: column.x / 2, y: column.y / 2 })
+            .and_then(|parent| self.heights.get(parent).map(|heights| (parent, heights)));
+        let from_parent = |i: i64, j: i64| {
+            let (parent, heights) = parent.as_ref()?;
+            let inside = |c: i64| (0..per_edge).contains(&c);
+            if i % 2 == 0 || j % 2 == 0 || !inside(i) || !inside(j) {
+                return None;
+            }
+            let q = |c: i64, chunk: u32| (c - 1) / 2 - i64::from(chunk) * size + 1;
+            let (qi, qj) = (q(i, parent.x), q(j, parent.y));
+            let within = |q: i64| (0..padded).contains(&q);
+            (within(qi) && within(qj)).then(|| heights[(qj * padded + qi) as usize])
+        };
+        let mut heights = vec![f64::NAN; (padded * padded) as usize];
+        let mut missing = Vec::with_capacity(heights.len());
+        let mut directions = Vec::with_capacity(heights.len());
+        for (n, height) in (0..padded * padded).zip(&mut heights) {
+            let (i, j) = (base_i + n % padded, base_j + n / padded);
+            if let Some(known) = from_parent(i, j) {
+                *height = known;
+            } else {
+                missing.push(n as usize);
+                directions.push(self.column_direction(column.face, column.lod, i, j));
+            }
+        }
+        let mut computed = vec![0.0; directions.len()];
+        self.heights_at(&directions, &mut computed);
+        for (n, height) in missing.into_iter().zip(computed) {
+            heights[n] = height / self.layer_height;
+        }
+        let heights: Arc<[f64]> = heights.into();
         self.heights.insert(column, heights.clone());
         heights
     }

@@ -297,6 +297,38 @@ fn filled_chunks_equal_voxels_read_one_by_one() {
     assert_eq!(checked, 8 * 32 * 32 * 32);
 }
 
+/// A column filled just after its parent (whose heights it shares every
+/// other column of) equals the same column from a cold planet: all four
+/// children, at face edges and corners too, on Earth and the small planet.
+#[test]
+fn columns_after_their_parent_give_the_same_voxels() {
+    let mut checked = 0;
+    for settings in [PlanetSettings::earth(4), PlanetSettings::small(4)] {
+        let warm = ProceduralPlanet::new(settings).unwrap();
+        for (n, lod) in [1u8, 2, 5].into_iter().enumerate() {
+            let per_edge = warm.layout().chunks_per_edge(lod + 1);
+            let face = CubeFace::ALL[n * 2];
+            for (px, py) in [(0, 0), (per_edge - 1, 0), (per_edge / 2, per_edge - 1), (per_edge / 3, per_edge / 3)] {
+                let parent = ChunkColumn { face, lod: lod + 1, x: px, y: py };
+                let layer = *warm.surface_chunk_layers(parent).unwrap().start();
+                warm.fill_chunk(parent.chunk(layer), &mut ChunkVoxels::new(parent.chunk(layer))).unwrap();
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let child = ChunkColumn { face, lod, x: px * 2 + dx, y: py * 2 + dy };
+                    for layer in warm.surface_chunk_layers(child).unwrap() {
+                        let key = child.chunk(layer);
+                        let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
+                        warm.fill_chunk(key, &mut cached).unwrap();
+                        warm.clone().fill_chunk(key, &mut cold).unwrap();
+                        assert!(cached == cold, "{key:?}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked >= 96, "only {checked} chunks checked");
+}
+
 fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }
