@@ -17,8 +17,11 @@
 //! terrain is unchanged: `matches_the_noise_crate` compares the two on a
 //! million points.
 
+use std::ops::{Add, Mul, Sub};
+
 use noise::permutationtable::{NoiseHasher, PermutationTable};
 use noise::{NoiseFn, Seedable};
+use wide::f64x2;
 
 /// Gradient components by hash & 15, as `noise::core::perlin::perlin_3d`
 /// lists them (12–15 repeat 0, 1, 9 and 11).
@@ -76,15 +79,57 @@ fn corner(v: f64) -> isize {
     if v <= 0.0 { truncated - 1 } else { truncated }
 }
 
+/// Whether two cell corners are the same, compared as one scalar: an
+/// array compare loads the corner the last sample stored as a vector, and
+/// that load waits for the stores (measured: a fifth of the noise time).
 #[inline(always)]
-fn quintic(x: f64) -> f64 {
-    let x = x.clamp(0.0, 1.0);
-    x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
+fn same_cell([ax, ay, az]: [isize; 3], [bx, by, bz]: [isize; 3]) -> bool {
+    (ax ^ bx) | (ay ^ by) | (az ^ bz) == 0
+}
+
+/// One value or two (SIMD lanes) through the same arithmetic: the kernel
+/// is written once for both, and a lane's IEEE operations are the scalar
+/// ones in the same order, so two at once equal one at a time bit for bit.
+trait Lanes: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    fn splat(value: f64) -> Self;
+    /// `f64::clamp` for the values the kernel meets (no NaN, and no −0
+    /// below `low`).
+    fn clamp_to(self, low: f64, high: f64) -> Self;
+}
+
+impl Lanes for f64 {
+    #[inline(always)]
+    fn splat(value: f64) -> Self {
+        value
+    }
+
+    #[inline(always)]
+    fn clamp_to(self, low: f64, high: f64) -> Self {
+        self.clamp(low, high)
+    }
+}
+
+impl Lanes for f64x2 {
+    #[inline(always)]
+    fn splat(value: f64) -> Self {
+        f64x2::splat(value)
+    }
+
+    #[inline(always)]
+    fn clamp_to(self, low: f64, high: f64) -> Self {
+        self.fast_max(f64x2::splat(low)).fast_min(f64x2::splat(high))
+    }
 }
 
 #[inline(always)]
-fn linear(a: f64, b: f64, alpha: f64) -> f64 {
-    b * alpha + a * (1.0 - alpha)
+fn quintic<T: Lanes>(x: T) -> T {
+    let x = x.clamp_to(0.0, 1.0);
+    x * x * x * (x * (x * T::splat(6.0) - T::splat(15.0)) + T::splat(10.0))
+}
+
+#[inline(always)]
+fn linear<T: Lanes>(a: T, b: T, alpha: T) -> T {
+    b * alpha + a * (T::splat(1.0) - alpha)
 }
 
 impl NoiseFn<f64, 3> for BranchlessPerlin {
@@ -125,17 +170,27 @@ impl BranchlessPerlin {
         kernel(offset, &cell.gradients)
     }
 
+    /// [`Self::get_in`] of two points: where the second lies in the
+    /// first's cell (neighbouring columns, most octaves) both are blended
+    /// at once in the two lanes of an SSE2 register.
+    #[inline(always)]
+    fn get2_in(&self, [first, second]: [[f64; 3]; 2], cell: &mut Cell) -> [f64; 2] {
+        let a = self.enter(first, cell);
+        if !same_cell(second.map(corner), cell.corner) {
+            let a = kernel(a, &cell.gradients);
+            return [a, self.get_in(second, cell)];
+        }
+        let b = self.enter(second, cell);
+        kernel([0, 1, 2].map(|axis| f64x2::new([a[axis], b[axis]])), &cell.gradients).to_array()
+    }
+
     /// Moves `cell` to `point`'s lattice cell (hashing its corners only if
     /// it is another cell) and returns the point's offset in the cell.
     #[inline(always)]
     fn enter(&self, point: [f64; 3], cell: &mut Cell) -> [f64; 3] {
         let corner = point.map(corner);
         let [cx, cy, cz] = corner;
-        // Compared as one scalar: an array compare loads the corner the
-        // last sample stored as a vector, and that load waits for the
-        // stores (measured: a fifth of the noise time).
-        let [ox, oy, oz] = cell.corner;
-        if (ox ^ cx) | (oy ^ cy) | (oz ^ cz) != 0 {
+        if !same_cell(corner, cell.corner) {
             cell.corner = corner;
             // hash(a, b, c) = P[P[P[a] ^ b] ^ c] with every coordinate & 0xff.
             let (x0, x1) = (self.entry(cx), self.entry(cx + 1));
@@ -164,23 +219,25 @@ impl BranchlessPerlin {
 /// Perlin's blend of the corner gradients at `offset` in the cell, as
 /// `noise::core::perlin::perlin_3d` orders the arithmetic.
 #[inline(always)]
-fn kernel([x, y, z]: [f64; 3], g: &[[f64; 3]; 8]) -> f64 {
-    let dot = |k: usize, dx: f64, dy: f64, dz: f64| g[k][0] * dx + g[k][1] * dy + g[k][2] * dz;
+fn kernel<T: Lanes>([x, y, z]: [T; 3], gradients: &[[f64; 3]; 8]) -> T {
+    let g = |k: usize, axis: usize| T::splat(gradients[k][axis]);
+    let dot = |k: usize, dx: T, dy: T, dz: T| g(k, 0) * dx + g(k, 1) * dy + g(k, 2) * dz;
+    let one = T::splat(1.0);
     let g000 = dot(0, x, y, z);
-    let g100 = dot(1, x - 1.0, y, z);
-    let g010 = dot(2, x, y - 1.0, z);
-    let g110 = dot(3, x - 1.0, y - 1.0, z);
-    let g001 = dot(4, x, y, z - 1.0);
-    let g101 = dot(5, x - 1.0, y, z - 1.0);
-    let g011 = dot(6, x, y - 1.0, z - 1.0);
-    let g111 = dot(7, x - 1.0, y - 1.0, z - 1.0);
+    let g100 = dot(1, x - one, y, z);
+    let g010 = dot(2, x, y - one, z);
+    let g110 = dot(3, x - one, y - one, z);
+    let g001 = dot(4, x, y, z - one);
+    let g101 = dot(5, x - one, y, z - one);
+    let g011 = dot(6, x, y - one, z - one);
+    let g111 = dot(7, x - one, y - one, z - one);
     let (u, v, w) = (quintic(x), quintic(y), quintic(z));
     let result = linear(
         linear(linear(g000, g001, w), linear(g010, g011, w), v),
         linear(linear(g100, g101, w), linear(g110, g111, w), v),
         u,
-    ) * SCALE_FACTOR;
-    result.clamp(-1.0, 1.0)
+    ) * T::splat(SCALE_FACTOR);
+    result.clamp_to(-1.0, 1.0)
 }
 
 /// How a [`Fractal`] sums its octaves.
@@ -300,19 +357,22 @@ impl Fractal {
         };
         for source in &self.sources {
             let mut cell = Cell::default();
-            match self.kind {
-                FractalKind::Fbm => {
-                    for (point, sum) in points.iter_mut().zip(out.iter_mut()) {
-                        *sum += source.get_in(*point, &mut cell) * attenuation;
-                        *point = point.map(|c| c * self.lacunarity);
-                    }
+            let mut k = 0;
+            while k < n {
+                let signals = if k + 1 < n {
+                    source.get2_in([points[k], points[k + 1]], &mut cell)
+                } else {
+                    [source.get_in(points[k], &mut cell), 0.0]
+                };
+                for (lane, signal) in signals.into_iter().enumerate().take(n - k) {
+                    let at = k + lane;
+                    out[at] += match self.kind {
+                        FractalKind::Fbm => signal,
+                        FractalKind::Ridged => ridge(signal, &mut weights[at]),
+                    } * attenuation;
+                    points[at] = points[at].map(|c| c * self.lacunarity);
                 }
-                FractalKind::Ridged => {
-                    for ((point, sum), weight) in points.iter_mut().zip(out.iter_mut()).zip(&mut weights) {
-                        *sum += ridge(source.get_in(*point, &mut cell), weight) * attenuation;
-                        *point = point.map(|c| c * self.lacunarity);
-                    }
-                }
+                k += 2;
             }
             attenuation *= self.persistence;
         }
