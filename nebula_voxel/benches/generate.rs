@@ -10,10 +10,11 @@
 //! layers of a column 1.43 / 1.49 ms (heights computed once); 64 LOD-2
 //! chunks on rayon 1.7× faster than sequentially on 2 threads. With the
 //! heights of a chunk's columns computed octave by octave, sharing noise
-//! cells (`perlin::Fractal::get_many`): LOD 0 1.00 ms, LOD 8 1.11 ms.
-//! (Blending four points at once in `wide::f64x4` lanes was slower, 1.81
-//! ms: on baseline x86-64 that is two SSE2 halves, and gathering each
-//! lane's gradients cost more than the lanes saved.)
+//! cells (`perlin::Fractal::get_many`): LOD 0 1.00 ms, LOD 8 1.11 ms;
+//! with two neighbours in one cell blended at once (`wide::f64x2`, one
+//! SSE2 register): 0.70 / 0.85 ms. Four lanes (`f64x4`, two SSE2 halves
+//! on baseline x86-64) were slower: 0.99 ms where all four share a cell,
+//! 1.81 ms gathering each lane's gradients.
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};

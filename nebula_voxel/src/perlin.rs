@@ -435,7 +435,8 @@ mod tests {
     /// Many points at once give what one at a time gives, bit for bit:
     /// rows of points a small step apart (as a chunk's voxel columns, so
     /// cells are shared by runs of points), at Earth-scale offsets and at
-    /// steps from far below to far above the cell size.
+    /// steps from far below to far above the cell size (an odd count, so a
+    /// point is left over after the pairs).
     #[test]
     fn batches_equal_single_points() {
         let mut state = 0x005E_ED0F_BA7C_u64;
@@ -444,7 +445,7 @@ mod tests {
         for round in 0..60 {
             let origin = [0.0; 3].map(|_| (next() * 2.0 - 1.0) * [1.0, 3e2, 1.6e6][round % 3]);
             let step = [0.0; 3].map(|_| (next() * 2.0 - 1.0) * [1e-4, 0.03, 0.6, 7.0][round % 4]);
-            let points: Vec<[f64; 3]> = (0..300)
+            let points: Vec<[f64; 3]> = (0..301)
                 .map(|k| [0, 1, 2].map(|a| origin[a] + step[a] * f64::from(k % 17) + 0.01 * f64::from(k / 17)))
                 .collect();
             for fractal in &fractals {
