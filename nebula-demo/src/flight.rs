@@ -250,6 +250,7 @@ pub fn fly(
     frames_dir: Option<&Path>,
 ) -> anyhow::Result<FlightReport> {
     anyhow::ensure!(fps.is_finite() && fps > 0.0 && fps <= 1000.0, "--fps must be in (0, 1000], got {fps}");
+    app.gpu().check_image_size(template.size)?;
     let shot_at = |t: f64| {
         let pose = flight.pose(t);
         Shot { position: pose.pos, look_at: pose.look_at, up: pose.up, ..template.clone() }

@@ -29,6 +29,16 @@ pub enum GpuError {
     /// Reading the image back failed.
     #[error("reading the frame back failed: {0}")]
     Readback(String),
+    /// An image size the device cannot draw or read back.
+    #[error("a {width}×{height} image is more than this GPU can draw: {limit}")]
+    TooLarge {
+        /// Requested width, pixels.
+        width: u32,
+        /// Requested height, pixels.
+        height: u32,
+        /// The device limit it passes.
+        limit: String,
+    },
 }
 
 #[repr(C)]
@@ -287,7 +297,8 @@ impl Gpu {
     /// A configuration for presenting to `surface` at `size`.
     #[must_use]
     pub fn surface_config(&self, surface: &wgpu::Surface<'_>, size: (u32, u32)) -> Option<wgpu::SurfaceConfiguration> {
-        let mut config = surface.get_default_config(&self.adapter, size.0.max(1), size.1.max(1))?;
+        let (width, height) = self.window_size(size);
+        let mut config = surface.get_default_config(&self.adapter, width, height)?;
         config.format = self.color_format;
         config.present_mode = wgpu::PresentMode::AutoVsync;
         Some(config)
@@ -416,6 +427,47 @@ impl Gpu {
         self.queue.submit([encoder.finish()]);
     }
 
+    /// A window size this device can draw: each side clamped to 1 ..= its
+    /// largest texture side (a window larger than that is drawn at the
+    /// limit and stretched by the compositor, with a message).
+    #[must_use]
+    pub fn window_size(&self, (width, height): (u32, u32)) -> (u32, u32) {
+        let side = self.device.limits().max_texture_dimension_2d;
+        let clamped = (width.clamp(1, side), height.clamp(1, side));
+        if clamped.0 < width || clamped.1 < height {
+            eprintln!(
+                "nebula-demo: a {width}×{height} window is drawn at {}×{} (this GPU's limit)",
+                clamped.0, clamped.1
+            );
+        }
+        clamped
+    }
+
+    /// Checks that this device can draw a `size` image and read it back
+    /// (its largest texture side and buffer), so a request past the
+    /// limits is refused before any work, not as a panic inside wgpu.
+    ///
+    /// # Errors
+    /// [`GpuError::TooLarge`] naming the limit.
+    pub fn check_image_size(&self, (width, height): (u32, u32)) -> Result<(), GpuError> {
+        let limits = self.device.limits();
+        let too_large = |limit: String| Err(GpuError::TooLarge { width, height, limit });
+        let side = limits.max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > side || height > side {
+            return too_large(format!("each side must be 1 to {side} pixels"));
+        }
+        let row = u64::from(width * 4).div_ceil(u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT))
+            * u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let bytes = row * u64::from(height);
+        if bytes > limits.max_buffer_size {
+            return too_large(format!(
+                "its read-back buffer of {bytes} bytes passes the {} byte limit",
+                limits.max_buffer_size
+            ));
+        }
+        Ok(())
+    }
+
     /// Bytes of GPU buffers held for chunk meshes (pages, used or not).
     #[must_use]
     pub fn mesh_buffer_bytes(&self) -> u64 {
@@ -466,8 +518,12 @@ pub struct Offscreen {
 
 impl Offscreen {
     /// A `width` × `height` target.
-    #[must_use]
-    pub fn new(gpu: &Gpu, size: (u32, u32)) -> Self {
+    ///
+    /// # Errors
+    /// [`GpuError::TooLarge`] past the device's limits
+    /// ([`Gpu::check_image_size`]).
+    pub fn new(gpu: &Gpu, size: (u32, u32)) -> Result<Self, GpuError> {
+        gpu.check_image_size(size)?;
         let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("offscreen colour"),
             size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
@@ -479,7 +535,7 @@ impl Offscreen {
             view_formats: &[],
         });
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        Self { texture, view, size }
+        Ok(Self { texture, view, size })
     }
 
     /// The image size.

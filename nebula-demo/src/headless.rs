@@ -201,6 +201,7 @@ fn pace(started: Instant) {
 /// Read-back failures, or no settled view in 10 minutes.
 pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     let view = shot_view(shot)?;
+    app.gpu().check_image_size(shot.size)?;
     app.set_view(view);
     let min_radius = app.min_surface_radius();
     anyhow::ensure!(
@@ -238,7 +239,7 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
 /// Read-back failures.
 pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
     let started = Instant::now();
-    let target = Offscreen::new(app.gpu(), shot.size);
+    let target = Offscreen::new(app.gpu(), shot.size)?;
     let background = shot.background.unwrap_or([20, 26, 38]);
     app.draw(&target.view, shot.size, background, shot.view);
     let rgba = target.read(app.gpu()).context("reading the image back")?;

@@ -641,8 +641,7 @@ impl ApplicationHandler for Windowed {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => {
                 if let Some(state) = self.state.as_mut() {
-                    state.config.width = size.width.max(1);
-                    state.config.height = size.height.max(1);
+                    (state.config.width, state.config.height) = state.app.gpu().window_size((size.width, size.height));
                     state.surface.configure(&state.app.gpu().device, &state.config);
                 }
             }
