@@ -39,6 +39,9 @@ pub struct View {
 #[derive(Resource)]
 pub struct GpuRes(pub Gpu);
 
+/// The clear colour behind the sky: space.
+pub const SPACE: [u8; 3] = [3, 4, 9];
+
 /// The demo's world and schedule.
 pub struct PlanetApp {
     /// The ECS world.
@@ -164,8 +167,16 @@ impl PlanetApp {
         self.streamer().frame_draw(self.world.resource::<View>().camera.position)
     }
 
-    /// Draws this frame's [`DrawList`] into `target`.
-    pub fn draw(&mut self, target: &wgpu::TextureView, size: (u32, u32), background: [u8; 3], debug: DebugView) {
+    /// Draws this frame's [`DrawList`] into `target`: over `background`
+    /// alone when one is given (nothing else is drawn over it, so crack
+    /// checks can count it), else under a sky, with sea and haze.
+    pub fn draw(
+        &mut self,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        background: Option<[u8; 3]>,
+        debug: DebugView,
+    ) {
         let start = Instant::now();
         let view = *self.world.resource::<View>();
         let frame_draw = self.frame_draw();
@@ -177,10 +188,13 @@ impl PlanetApp {
             fov_y_degrees: view.fov_y_degrees as f32,
             k: frame_draw.k as f32,
             threshold_px: frame_draw.threshold_px as f32,
-            background,
+            background: background.unwrap_or(SPACE),
             view: debug,
             morph: frame_draw.morph,
             max_lod,
+            atmosphere: background
+                .is_none()
+                .then(|| nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius()),
         };
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
             let stream = world.resource::<Stream>();

@@ -14,6 +14,10 @@ use nebula_meshing::{RenderMesh, drawn_ranges};
 /// colour is stored exactly (the shader encodes sRGB itself).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Where the terrain pass drew sea bed (1) or not (0), for the sky pass: the
+/// sea is drawn over sea bed only, never over land that a coarse LOD drew
+/// below sea level.
+const SEA_MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// Bytes of one chunk's entry in the per-frame chunk table.
 const CHUNK_UNIFORM_BYTES: u64 = size_of::<ChunkUniform>() as u64;
 
@@ -49,6 +53,11 @@ struct FrameUniform {
     params: [f32; 4],
     eye_high: [f32; 4],
     eye_low: [f32; 4],
+    /// Camera-relative clip → world, for the sky pass's view rays.
+    inv_view_proj: [[f32; 4]; 4],
+    /// x: planet (sea level) radius, y: eye radius, z: eye altitude (both
+    /// from f64), w: 1 where the sky is drawn.
+    planet: [f32; 4],
 }
 
 #[repr(C)]
@@ -118,6 +127,9 @@ pub struct FrameParams {
     pub morph: bool,
     /// The planet's coarsest LOD (for colours).
     pub max_lod: u8,
+    /// Draw the sky, sea and haze of a planet of this radius (metres) over
+    /// the terrain; `None` leaves the background alone (crack checks).
+    pub atmosphere: Option<f64>,
 }
 
 /// Device, queue, pipeline and the per-chunk uniform ring.
@@ -140,7 +152,12 @@ pub struct Gpu {
     chunk_buffer: wgpu::Buffer,
     chunk_group: wgpu::BindGroup,
     chunk_capacity: u64,
-    depth: Option<(wgpu::Texture, wgpu::TextureView, (u32, u32))>,
+    /// The depth target and sea mask, and the sky pass's bind group that
+    /// reads them.
+    depth: Option<DepthTarget>,
+    /// The sky pass: sky, sea and haze from the terrain's depth.
+    sky_pipeline: wgpu::RenderPipeline,
+    sky_layout: wgpu::BindGroupLayout,
     /// The chunk meshes' buffers.
     arena: MeshArena,
 }
@@ -248,17 +265,86 @@ impl Gpu {
                     module: &shader,
                     entry_point: Some("fs_main"),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: color_format,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
+                    targets: &[
+                        Some(wgpu::ColorTargetState {
+                            format: color_format,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        }),
+                        Some(wgpu::ColorTargetState {
+                            format: SEA_MASK_FORMAT,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        }),
+                    ],
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
         let pipeline = make_pipeline(wgpu::PolygonMode::Fill, "nebula terrain pipeline");
+        let sky_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("sky layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let sky_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("sky pipeline layout"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&sky_layout)],
+            immediate_size: 0,
+        });
+        // Premultiplied: the pass writes the light scattered towards the eye
+        // and, as alpha, how much of what lies behind it hides.
+        let premultiplied = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let sky_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("nebula sky pipeline"),
+            layout: Some(&sky_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_sky"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_sky"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: color_format,
+                    blend: Some(wgpu::BlendState { color: premultiplied, alpha: premultiplied }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
         let wire_pipeline = device
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE)
@@ -290,6 +376,8 @@ impl Gpu {
             chunk_group,
             chunk_capacity: 256,
             depth: None,
+            sky_pipeline,
+            sky_layout,
             arena: MeshArena::default(),
         })
     }
@@ -336,12 +424,22 @@ impl Gpu {
         let view_proj = view_projection(frame.forward, frame.up, frame.fov_y_degrees, aspect);
         let sun = Vec3::new(0.4, 0.8, 0.45).normalize();
         let (eye_high, eye_low) = split_high_low(frame.eye);
+        // The sky pass only in the shaded view: debug colours stay plain.
+        let sky = frame.atmosphere.filter(|_| frame.view == DebugView::Shaded);
+        let radius = sky.unwrap_or(1.0);
         let uniform = FrameUniform {
             view_proj: view_proj.to_cols_array_2d(),
             sun: [sun.x, sun.y, sun.z, 0.25],
             params: [frame.k, frame.threshold_px, frame.view as u32 as f32, if frame.morph { 1.0 } else { 0.0 }],
             eye_high: [eye_high[0], eye_high[1], eye_high[2], 0.0],
             eye_low: [eye_low[0], eye_low[1], eye_low[2], 0.0],
+            inv_view_proj: view_proj.inverse().to_cols_array_2d(),
+            planet: [
+                radius as f32,
+                frame.eye.length() as f32,
+                (frame.eye.length() - radius) as f32,
+                if sky.is_some() { 1.0 } else { 0.0 },
+            ],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
         if meshes.len() as u64 > self.chunk_capacity {
@@ -365,18 +463,30 @@ impl Gpu {
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         let pages = self.arena.lock();
         {
-            let depth_view = &self.depth.as_ref().map(|d| &d.1);
+            let depth_view = &self.depth.as_ref().map(|d| &d.view);
+            let sea_mask = self.depth.as_ref().map(|d| &d.sea_mask);
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("terrain pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
+                color_attachments: &[
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                    sea_mask.map(|view| wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                ],
                 depth_stencil_attachment: depth_view.map(|view| wgpu::RenderPassDepthStencilAttachment {
                     view,
                     depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
@@ -422,6 +532,27 @@ impl Gpu {
                     );
                 }
             }
+        }
+        if let (Some(_), Some(DepthTarget { sky_group, .. })) = (sky, &self.depth) {
+            // Sky, sea and haze over the terrain, from its depth: one
+            // full-screen triangle.
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("sky pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.sky_pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            pass.set_bind_group(1, sky_group, &[]);
+            pass.draw(0..3, 0..1);
         }
         drop(pages);
         self.queue.submit([encoder.finish()]);
@@ -475,7 +606,7 @@ impl Gpu {
     }
 
     fn ensure_depth(&mut self, size: (u32, u32)) {
-        if self.depth.as_ref().is_some_and(|d| d.2 == size) {
+        if self.depth.as_ref().is_some_and(|d| d.size == size) {
             return;
         }
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
@@ -485,11 +616,30 @@ impl Gpu {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        self.depth = Some((texture, view, size));
+        let mask = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("sea mask"),
+            size: wgpu::Extent3d { width: size.0.max(1), height: size.1.max(1), depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: SEA_MASK_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let sea_mask = mask.create_view(&wgpu::TextureViewDescriptor::default());
+        let sky_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("sky bind group"),
+            layout: &self.sky_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&sea_mask) },
+            ],
+        });
+        self.depth = Some(DepthTarget { _texture: texture, view, _mask: mask, sea_mask, size, sky_group });
     }
 }
 
@@ -506,6 +656,17 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
         entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
     });
     (buffer, group)
+}
+
+/// The terrain pass's depth and sea mask at one size, and the sky pass's
+/// bind group reading both.
+struct DepthTarget {
+    _texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    _mask: wgpu::Texture,
+    sea_mask: wgpu::TextureView,
+    size: (u32, u32),
+    sky_group: wgpu::BindGroup,
 }
 
 /// An offscreen colour target and the buffer it is read back through.

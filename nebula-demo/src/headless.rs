@@ -240,8 +240,7 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
 pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
     let started = Instant::now();
     let target = Offscreen::new(app.gpu(), shot.size)?;
-    let background = shot.background.unwrap_or([20, 26, 38]);
-    app.draw(&target.view, shot.size, background, shot.view);
+    app.draw(&target.view, shot.size, shot.background, shot.view);
     let rgba = target.read(app.gpu()).context("reading the image back")?;
     let draw_ms = started.elapsed().as_secs_f64() * 1e3;
     let started = Instant::now();

@@ -567,7 +567,7 @@ impl Windowed {
             _ => return Ok(()),
         };
         let view = texture.texture.create_view(&wgpu::TextureViewDescriptor::default());
-        state.app.draw(&view, size, self.shot.background.unwrap_or([20, 26, 38]), self.view);
+        state.app.draw(&view, size, self.shot.background, self.view);
         state.app.gpu().queue.present(texture);
         self.frames += 1;
         if self.frame_clock.elapsed().as_secs_f64() > 0.5 {
@@ -668,8 +668,11 @@ impl ApplicationHandler for Windowed {
                             };
                         }
                         KeyCode::KeyM => {
-                            let solid: Vec<Voxel> =
-                                Voxel::NAMED.iter().map(|&(_, v)| v).filter(|v| v.is_solid()).collect();
+                            let solid: Vec<Voxel> = Voxel::NAMED
+                                .iter()
+                                .map(|&(_, v)| v)
+                                .filter(|v| v.is_solid() && *v != Voxel::SEABED)
+                                .collect();
                             let next = solid.iter().position(|&v| v == self.material).map_or(0, |n| n + 1);
                             self.material = solid[next % solid.len()];
                         }

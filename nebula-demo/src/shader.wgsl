@@ -1,5 +1,6 @@
 // Nebula planet shader: camera-relative chunks, per-vertex geomorphing from
-// the screen-space error (seed 001), sun lighting, debug views.
+// the screen-space error (seed 001), sun lighting, debug views; and the sky
+// pass (sky, sea, haze) drawn over the terrain from its depth.
 
 struct Frame {
     view_proj: mat4x4<f32>,
@@ -10,6 +11,10 @@ struct Frame {
     // The eye's f64 world position as high + low f32 parts.
     eye_high: vec4<f32>,
     eye_low: vec4<f32>,
+    // Camera-relative clip → world (the sky pass's view rays).
+    inv_view_proj: mat4x4<f32>,
+    // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: sky on.
+    planet: vec4<f32>,
 };
 
 struct Chunk {
@@ -111,6 +116,7 @@ fn material_colour(material: u32) -> vec3<f32> {
         case 3u: { return vec3<f32>(0.22, 0.45, 0.16); } // grass
         case 4u: { return vec3<f32>(0.76, 0.70, 0.50); } // sand
         case 5u: { return vec3<f32>(0.92, 0.94, 0.97); } // snow
+        case 6u: { return vec3<f32>(0.55, 0.50, 0.38); } // sea bed
         default: { return vec3<f32>(0.6, 0.3, 0.6); }
     }
 }
@@ -129,8 +135,15 @@ fn encode(linear: vec3<f32>) -> vec3<f32> {
     return select(high, low, c <= vec3<f32>(0.0031308));
 }
 
+// The terrain pass's outputs: the colour, and 1 where the sky pass is to
+// draw the sea (sea bed, material 6).
+struct TerrainOut {
+    @location(0) colour: vec4<f32>,
+    @location(1) sea: f32,
+};
+
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut) -> TerrainOut {
     let n = normalize(in.normal);
     let light = frame.sun.w + max(dot(n, frame.sun.xyz), 0.0) * (1.0 - frame.sun.w);
     var base = material_colour(in.material);
@@ -146,5 +159,140 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     } else if (view == 5u) {
         base = lod_colour(in.lod_id.y * 0.37 + 0.1);
     }
-    return vec4<f32>(encode(base * light), 1.0);
+    var out: TerrainOut;
+    out.colour = vec4<f32>(encode(base * light), 1.0);
+    out.sea = select(0.0, 1.0, in.material == 6u);
+    return out;
+}
+
+// ---- Sky pass -------------------------------------------------------------
+//
+// One full-screen triangle after the terrain, reading its depth. Per pixel:
+// the view ray, the sea (the sphere at sea level, hit analytically: no
+// mesh, no seams), and haze from the optical depth of an exponential
+// atmosphere along the ray (8 samples). A cheap model, not Rayleigh/Mie
+// scattering: the sky colour is a gradient from horizon to zenith, tinted by
+// the sun's height, and the haze blends towards it. Output is premultiplied:
+// rgb the light added, alpha how much of the terrain behind is hidden.
+
+@group(1) @binding(0) var terrain_depth: texture_depth_2d;
+@group(1) @binding(1) var sea_mask: texture_2d<f32>;
+
+@vertex
+fn vs_sky(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
+// Scale height and sea-level visibility as shares of the planet radius (8.3
+// km and 51 km on Earth); the atmosphere ends 12 scale heights up.
+const SCALE_HEIGHT: f32 = 0.0013;
+const VISIBILITY: f32 = 0.008;
+const TOP: f32 = 12.0;
+
+fn sky_colour(dir: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
+    let sun = frame.sun.xyz;
+    let elevation = clamp(dot(dir, up), 0.0, 1.0);
+    let sun_height = dot(sun, up);
+    let day = smoothstep(-0.15, 0.1, sun_height);
+    let zenith = vec3<f32>(0.10, 0.28, 0.70);
+    let horizon = mix(vec3<f32>(0.85, 0.45, 0.20), vec3<f32>(0.60, 0.72, 0.88), smoothstep(0.0, 0.35, sun_height));
+    var colour = mix(horizon, zenith, pow(elevation, 0.45));
+    colour = colour + vec3<f32>(1.0, 0.75, 0.45) * pow(max(dot(dir, sun), 0.0), 24.0) * 0.35;
+    return colour * (0.08 + 0.92 * day);
+}
+
+// Height above sea level of the point `t` along the ray, from
+// r² − R² = c + 2tb + t² (no cancellation against R²).
+fn altitude(t: f32, b: f32, c: f32, radius: f32) -> f32 {
+    let excess = c + 2.0 * t * b + t * t;
+    return excess / (sqrt(radius * radius + excess) + radius);
+}
+
+@fragment
+fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
+    let size = vec2<f32>(textureDimensions(terrain_depth));
+    let depth = textureLoad(terrain_depth, vec2<i32>(pixel.xy), 0);
+    let ndc = vec2<f32>(pixel.x / size.x * 2.0 - 1.0, 1.0 - pixel.y / size.y * 2.0);
+    let near = frame.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+    let dir = normalize(near.xyz / near.w);
+    let radius = frame.planet.x;
+    let eye_radius = frame.planet.y;
+    let height = frame.planet.z;
+    let up = normalize(frame.eye_high.xyz + frame.eye_low.xyz);
+    let b = dot(dir, up) * eye_radius;
+    let c = height * (eye_radius + radius);
+    // Terrain (reverse Z: 0 is nothing drawn).
+    var terrain = 3.0e38;
+    if (depth > 0.0) {
+        let p = frame.inv_view_proj * vec4<f32>(ndc, depth, 1.0);
+        terrain = length(p.xyz / p.w);
+    }
+    // The sea: over sea bed, where the ray meets the sea-level sphere (or
+    // at the sea bed itself, where a coarse LOD drew it above); and where
+    // the ray meets that sphere with no terrain drawn. Never over land, even
+    // land a coarse LOD rounded down below sea level.
+    var sea = -1.0;
+    let sea_bed = textureLoad(sea_mask, vec2<i32>(pixel.xy), 0).r > 0.5;
+    let sea_disc = b * b - c;
+    var sphere = 3.0e38;
+    if (height > 0.0 && sea_disc > 0.0 && -b - sqrt(sea_disc) > 0.0) {
+        sphere = -b - sqrt(sea_disc);
+    }
+    if (sea_bed) {
+        sea = min(sphere, terrain);
+    } else if (depth == 0.0 && sphere < 1.0e38) {
+        sea = sphere;
+    }
+    var hit = terrain;
+    if (sea > 0.0) {
+        hit = sea;
+    }
+    // Optical depth through the atmosphere, up to whatever the ray hits.
+    let scale_height = SCALE_HEIGHT * radius;
+    let top = radius + TOP * scale_height;
+    let top_c = (height - TOP * scale_height) * (eye_radius + top);
+    let top_disc = b * b - top_c;
+    var tau = 0.0;
+    if (top_disc > 0.0) {
+        let start = max(-b - sqrt(top_disc), 0.0);
+        let end = min(-b + sqrt(top_disc), hit);
+        if (end > start) {
+            let step = (end - start) / 8.0;
+            for (var k = 0; k < 8; k = k + 1) {
+                let t = start + (f32(k) + 0.5) * step;
+                tau = tau + exp(-max(altitude(t, b, c, radius), 0.0) / scale_height) * step;
+            }
+            tau = tau / (VISIBILITY * radius);
+        }
+    }
+    let transmit = exp(-tau);
+    let sky = sky_colour(dir, up);
+    if (hit > 1.0e38) {
+        // Sky: opaque inside the atmosphere, a glow along the limb from
+        // space, and the sun's disc.
+        let glow = 1.0 - exp(-6.0 * tau);
+        let disc = smoothstep(0.99985, 0.99995, dot(dir, frame.sun.xyz)) * transmit;
+        let light = encode(sky) * glow + vec3<f32>(1.0, 0.95, 0.85) * disc;
+        return vec4<f32>(min(light, vec3<f32>(1.0)), clamp(max(glow, disc), 0.0, 1.0));
+    }
+    let haze = 1.0 - transmit;
+    if (sea > 0.0) {
+        let normal = normalize(up * eye_radius + dir * sea);
+        let reflected = reflect(dir, normal);
+        let facing = max(dot(-dir, normal), 0.0);
+        let fresnel = 0.02 + 0.98 * pow(1.0 - facing, 5.0);
+        let lit = max(dot(normal, frame.sun.xyz), 0.0);
+        let water = vec3<f32>(0.01, 0.05, 0.09) * (0.3 + 0.7 * lit);
+        let glint = vec3<f32>(1.0, 0.9, 0.7) * pow(max(dot(reflected, frame.sun.xyz), 0.0), 300.0) * 2.0 * lit;
+        let surface = mix(water, sky_colour(reflected, normal), fresnel) + glint;
+        // Shallow water shows the sea floor.
+        var opacity = 1.0 - exp(-(terrain - sea) / min(3.0, 0.001 * radius));
+        if (sea >= terrain) {
+            opacity = 1.0;
+        }
+        let light = encode(surface) * opacity * transmit + encode(sky) * haze;
+        return vec4<f32>(light, 1.0 - transmit * (1.0 - opacity));
+    }
+    return vec4<f32>(encode(sky) * haze, haze);
 }

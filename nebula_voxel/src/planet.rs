@@ -153,7 +153,7 @@ pub struct ProceduralPlanet {
     heights: HeightCache,
 }
 
-/// Chunk columns whose heights [`HeightCache`] keeps: about 19 MB. A
+/// Chunk columns whose heights [`HeightCache`] keeps: about 38 MB. A
 /// streaming renderer asks for a column's layers one after another (they
 /// share a priority), and for a column's parent a little before the column
 /// (coarse first): a view's worth of columns catches most of both.
@@ -174,14 +174,22 @@ struct HeightCache {
 }
 
 /// The cached heights by column, and the columns oldest first.
-type HeightEntries = (HashMap<ChunkColumn, Arc<[f64]>>, VecDeque<ChunkColumn>);
+type HeightEntries = (HashMap<ChunkColumn, Arc<[Column]>>, VecDeque<ChunkColumn>);
+
+/// One voxel column: its height in layers and the material of its top
+/// voxel (by height and latitude, see [`ProceduralPlanet::surface`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Column {
+    height: f64,
+    surface: Voxel,
+}
 
 impl HeightCache {
-    fn get(&self, column: ChunkColumn) -> Option<Arc<[f64]>> {
+    fn get(&self, column: ChunkColumn) -> Option<Arc<[Column]>> {
         self.entries.lock().ok()?.0.get(&column).cloned()
     }
 
-    fn insert(&self, column: ChunkColumn, heights: Arc<[f64]>) {
+    fn insert(&self, column: ChunkColumn, heights: Arc<[Column]>) {
         let Ok(mut entries) = self.entries.lock() else { return };
         let (map, order) = &mut *entries;
         if map.insert(column, heights).is_none() {
@@ -370,11 +378,38 @@ impl ProceduralPlanet {
     /// In the gap beyond two edges (a cube corner) the nearest column on the
     /// face stands in: such voxels are never face neighbours of a chunk's
     /// own.
-    fn column_height(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> f64 {
-        self.height_at(self.column_direction(face, lod, ci, cj)) / self.layer_height
+    fn column(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> Column {
+        let direction = self.column_direction(face, lod, ci, cj);
+        self.sample(direction, self.height_at(direction))
     }
 
-    /// The unit direction [`Self::column_height`] samples.
+    /// The column in `direction` whose terrain height is `height_m` metres.
+    fn sample(&self, direction: nebula_math::DVec3, height_m: f64) -> Column {
+        Column { height: height_m / self.layer_height, surface: self.surface(height_m, direction.z) }
+    }
+
+    /// The material of a column's top voxel, from its height (metres) and
+    /// latitude (`sin_latitude`, +Z is north): sea bed below sea level, sand
+    /// at the shore, grass, bare rock high up, snow above a snow line that
+    /// comes down to the sea near the poles.
+    fn surface(&self, height_m: f64, sin_latitude: f64) -> Voxel {
+        let amplitude = self.settings.amplitude;
+        let snow_line = amplitude * (0.55 - 0.65 * sin_latitude.abs().powi(3));
+        let shore = (0.001 * amplitude).max(2.0 * self.layer_height);
+        if height_m > snow_line {
+            Voxel::SNOW
+        } else if height_m > 0.35 * amplitude {
+            Voxel::STONE
+        } else if height_m < 0.0 {
+            Voxel::SEABED
+        } else if height_m < shore {
+            Voxel::SAND
+        } else {
+            Voxel::GRASS
+        }
+    }
+
+    /// The unit direction [`Self::column`] samples.
     fn column_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> nebula_math::DVec3 {
         let per_edge = i64::from(self.layout.voxels_per_edge(lod));
         let (face, ci, cj) =
@@ -385,7 +420,7 @@ impl ProceduralPlanet {
 
     /// The heights of `column`'s padded voxel columns (x fastest, as
     /// `PaddedChunkShape` orders x and z), from the cache or computed.
-    fn padded_heights(&self, column: ChunkColumn) -> Arc<[f64]> {
+    fn padded_heights(&self, column: ChunkColumn) -> Arc<[Column]> {
         if let Some(heights) = self.heights.get(column) {
             return heights;
         }
@@ -412,7 +447,7 @@ impl ProceduralPlanet {
             let within = |q: i64| (0..padded).contains(&q);
             (within(qi) && within(qj)).then(|| heights[(qj * padded + qi) as usize])
         };
-        let mut heights = vec![f64::NAN; (padded * padded) as usize];
+        let mut heights = vec![Column { height: f64::NAN, surface: Voxel::AIR }; (padded * padded) as usize];
         let mut missing = Vec::with_capacity(heights.len());
         let mut directions = Vec::with_capacity(heights.len());
         for (n, height) in (0..padded * padded).zip(&mut heights) {
@@ -426,35 +461,27 @@ impl ProceduralPlanet {
         }
         let mut computed = vec![0.0; directions.len()];
         self.heights_at(&directions, &mut computed);
-        for (n, height) in missing.into_iter().zip(computed) {
-            heights[n] = height / self.layer_height;
+        for ((n, height), direction) in missing.into_iter().zip(computed).zip(&directions) {
+            heights[n] = self.sample(*direction, height);
         }
-        let heights: Arc<[f64]> = heights.into();
+        let heights: Arc<[Column]> = heights.into();
         self.heights.insert(column, heights.clone());
         heights
     }
 
-    /// Voxel `h` (in voxels of `lod`) of a column of height `height` layers:
-    /// solid iff its far-corner LOD-0 voxel's centre is below the height.
-    /// The material goes by depth in voxels of `lod`, so the top voxel of a
-    /// column has the surface material at every LOD (no colour pop).
-    fn classify(&self, height: f64, h: i64, lod: u8) -> Voxel {
+    /// Voxel `h` (in voxels of `lod`) of `column`: solid iff its far-corner
+    /// LOD-0 voxel's centre is below the column's height. The material goes
+    /// by depth in voxels of `lod`, so the top voxel of a column has the
+    /// surface material at every LOD (no colour pop).
+    fn classify(&self, column: Column, h: i64, lod: u8) -> Voxel {
         let span = self.layout.voxel_span(lod) as f64;
         let corner_centre = (h + 1) as f64 * span - 0.5;
-        let depth = height - corner_centre;
+        let depth = column.height - corner_centre;
         if depth <= 0.0 {
             return Voxel::AIR;
         }
-        let height_m = height * self.layer_height;
-        let amplitude = self.settings.amplitude;
         if depth <= span {
-            if height_m > 0.55 * amplitude {
-                Voxel::SNOW
-            } else if height_m < 0.03 * amplitude {
-                Voxel::SAND
-            } else {
-                Voxel::GRASS
-            }
+            column.surface
         } else if depth <= span + 3.0 {
             Voxel::DIRT
         } else {
@@ -493,8 +520,8 @@ impl VoxelSource for ProceduralPlanet {
 
     fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
         self.layout.check_voxel(at)?;
-        let height = self.column_height(at.face, at.lod, at.i.into(), at.j.into());
-        Ok(self.classify(height, at.h.into(), at.lod))
+        let column = self.column(at.face, at.lod, at.i.into(), at.j.into());
+        Ok(self.classify(column, at.h.into(), at.lod))
     }
 
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
@@ -505,10 +532,10 @@ impl VoxelSource for ProceduralPlanet {
         let voxels = out.as_mut_slice();
         for z in 0..PADDED_CHUNK_SIZE {
             for x in 0..PADDED_CHUNK_SIZE {
-                let height = heights[(z * PADDED_CHUNK_SIZE + x) as usize];
+                let column = heights[(z * PADDED_CHUNK_SIZE + x) as usize];
                 for y in 0..PADDED_CHUNK_SIZE {
                     voxels[PaddedChunkShape::linearize([x, y, z]) as usize] =
-                        self.classify(height, base_h + i64::from(y), key.lod);
+                        self.classify(column, base_h + i64::from(y), key.lod);
                 }
             }
         }

@@ -16,20 +16,25 @@ impl Voxel {
     pub const DIRT: Voxel = Voxel(2);
     /// The top voxel of lowland columns.
     pub const GRASS: Voxel = Voxel(3);
-    /// The top voxel near height 0 and in hollows below it.
+    /// The top voxel at the shore, just above sea level.
     pub const SAND: Voxel = Voxel(4);
-    /// The top voxel of high columns.
+    /// The top voxel of high columns and of cold ones.
     pub const SNOW: Voxel = Voxel(5);
+    /// The top voxel of columns below sea level: a renderer draws the sea
+    /// over it (at every LOD, where coarse voxels round the surface down
+    /// below the sea level even on land, only over this).
+    pub const SEABED: Voxel = Voxel(6);
 
     /// The named materials, by name (what command lines and save tools
     /// show).
-    pub const NAMED: [(&'static str, Voxel); 6] = [
+    pub const NAMED: [(&'static str, Voxel); 7] = [
         ("air", Voxel::AIR),
         ("stone", Voxel::STONE),
         ("dirt", Voxel::DIRT),
         ("grass", Voxel::GRASS),
         ("sand", Voxel::SAND),
         ("snow", Voxel::SNOW),
+        ("seabed", Voxel::SEABED),
     ];
 
     /// The voxel named `name` (case-insensitive), or `None`.

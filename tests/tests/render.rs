@@ -627,3 +627,28 @@ fn a_shaft_dug_against_a_lod_seam_opens_no_hole() {
     );
     assert_eq!(app.stale_chunks(), 0);
 }
+
+/// The sky, sea and haze are drawn only without a background: with one
+/// (as every crack check here sets), the sky is the clear colour exactly;
+/// without, it is a blue sky, not the clear colour. (Earth, 1 km up,
+/// looking 5° down: the top rows are sky.)
+#[test]
+fn the_sky_is_drawn_only_without_a_background() {
+    if !adapter_or_skip("sky") {
+        return;
+    }
+    let settings = earth();
+    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
+    let (eye, look) = pose(&settings, dir, 1_000.0, dir.cross(DVec3::Z), 5.0);
+    let with_background = settled("sky-off", &settings, &shot(eye, look, 60.0), DrawOptions::default());
+    let plain = Shot { background: None, ..shot(eye, look, 60.0) };
+    let with_sky = settled("sky-on", &settings, &plain, DrawOptions::default());
+    let (width, _) = SIZE;
+    let top_row = |picture: &Picture| -> Vec<[u8; 3]> {
+        (0..width as usize).map(|x| [0, 1, 2].map(|c| picture.rgba[x * 4 + c])).collect()
+    };
+    assert!(top_row(&with_background).iter().all(|p| *p == SENTINEL), "something drawn over the background");
+    let sky = top_row(&with_sky);
+    assert!(sky.iter().all(|p| *p != nebula_demo::app::SPACE && p[2] > p[0] + 40), "no blue sky: {:?}", &sky[..4]);
+    println!("sky at the top: {:?}", sky[width as usize / 2]);
+}
