@@ -25,7 +25,10 @@
 //!   frustum culling pick the leaves to draw ([`LodTree::cull`], a walk
 //!   from the roots that skips hidden subtrees).
 //!   A culled leaf stays in the tree, so a visible neighbour's seam is never
-//!   computed against a missing chunk.
+//!   computed against a missing chunk. That culling is conservative (the
+//!   planet-wide lowest bound, hundreds of kilometres deep on an Earth);
+//!   [`LodTree::horizon_occluder`] gives the terrain's real horizon, behind
+//!   which a renderer draws leaves coarse instead of meshing them.
 //! - **Incremental by distance margins**: a node's decision can only flip
 //!   after the camera has travelled its margin to the split or merge
 //!   distance, so only due nodes are evaluated (see `tree` docs);

@@ -18,6 +18,8 @@
 //!
 //! ```text
 //!   for each visible leaf L of the LOD tree:
+//!     L behind the terrain's horizon → L := its coarsest ancestor that is
+//!                                    hidden too (LodTree::horizon_occluder)
 //!     L's column meshed            → draw L
 //!     else its 4 children meshed   → draw them (a merge not ready yet)
 //!     else nearest meshed ancestor → draw it instead (a split not ready yet);
