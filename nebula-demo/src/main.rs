@@ -65,14 +65,26 @@ struct Args {
     /// crack pixels are counted.
     #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
     background: Option<[u8; 3]>,
-    /// Planet seed.
-    #[arg(long, default_value_t = 7)]
+    /// A named planet; --seed, --radius and --voxel-size change it.
+    #[arg(long, value_enum, default_value_t = Preset::Small)]
+    planet: Preset,
+    /// Planet seed [default: the preset's].
+    #[arg(long = "seed", value_name = "N")]
+    seed_arg: Option<u32>,
+    /// Planet radius in metres [default: the preset's].
+    #[arg(long = "radius", value_name = "M")]
+    radius_arg: Option<f64>,
+    /// Voxel size in metres [default: the preset's].
+    #[arg(long = "voxel-size", value_name = "M")]
+    voxel_size_arg: Option<f64>,
+    /// The planet seed used: --seed or the preset's.
+    #[arg(skip)]
     seed: u32,
-    /// Planet radius in metres.
-    #[arg(long, value_name = "M", default_value_t = 2_000.0)]
+    /// The radius used.
+    #[arg(skip)]
     radius: f64,
-    /// Voxel size in metres.
-    #[arg(long, value_name = "M", default_value_t = 1.5)]
+    /// The voxel size used.
+    #[arg(skip)]
     voxel_size: f64,
     /// Screen-space error threshold in pixels.
     #[arg(long, value_name = "PX", default_value_t = 1.0)]
@@ -107,6 +119,25 @@ struct Args {
     /// edited; `edit` saves into it.
     #[arg(long, value_name = "PATH")]
     world: Option<PathBuf>,
+}
+
+/// A named planet (`--planet`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Preset {
+    /// 2 km radius, 1.5 m voxels, seed 7: streams fast anywhere.
+    Small,
+    /// Earth-sized: 6,371 km radius, 1 m voxels, seed 11.
+    Earth,
+}
+
+impl Preset {
+    /// Seed, radius and voxel size.
+    fn parameters(self) -> (u32, f64, f64) {
+        match self {
+            Preset::Small => (7, 2_000.0, 1.5),
+            Preset::Earth => (11, 6_371_000.0, 1.0),
+        }
+    }
 }
 
 /// What drives the geomorph (`nebula_world::stream::MorphRule`).
@@ -192,7 +223,11 @@ fn parse_rgb(text: &str) -> Result<[u8; 3], String> {
 }
 
 fn main() -> std::process::ExitCode {
-    let args = Args::parse();
+    let mut args = Args::parse();
+    let (seed, radius, voxel_size) = args.planet.parameters();
+    args.seed = args.seed_arg.unwrap_or(seed);
+    args.radius = args.radius_arg.unwrap_or(radius);
+    args.voxel_size = args.voxel_size_arg.unwrap_or(voxel_size);
     match run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(error) => {
@@ -283,11 +318,15 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         max = max.max(bounds.max_radius);
     }
     let s = planet.settings();
+    // The deepest LOD-0 surface (edits included); the root bounds' minimum
+    // is far lower, as the coarsest voxels round the surface down.
+    let lowest = world.source().lowest_surface_radius().unwrap_or(min);
     let value = serde_json::json!({
         "radius": s.radius,
         "voxel_size": planet.voxel_size(),
-        "min_surface_radius": min,
+        "min_surface_radius": lowest,
         "max_surface_radius": max,
+        "min_drawn_radius": min,
         "max_lod": layout.max_lod(),
         "seed": s.seed,
         "world": world.store().map(|store| store.path().display().to_string()),
@@ -300,7 +339,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
             "radius {} m, voxel {:.3} m, surface between {} and {} m, LODs 0..={}, seed {}, {} edited voxels",
             s.radius,
             planet.voxel_size(),
-            min,
+            lowest,
             max,
             layout.max_lod(),
             s.seed,
