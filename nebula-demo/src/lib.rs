@@ -31,6 +31,7 @@ pub mod crack;
 pub mod flight;
 pub mod gpu;
 pub mod headless;
+pub mod hud;
 
 use nebula_voxel::PlanetSettings;
 

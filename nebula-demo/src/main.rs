@@ -8,7 +8,7 @@
 //! the centre of the window, right click places one against it (M cycles
 //! the material); with `--world` every edit is saved at once. G switches
 //! between flying and walking (gravity, Space jumps, one-block ledges are
-//! climbed).
+//! climbed). H hides or shows the HUD.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -20,6 +20,7 @@ use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, ca
 use nebula_demo::commands;
 use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
+use nebula_demo::hud::Hud;
 use nebula_demo::planet_settings;
 use nebula_math::DVec3;
 use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
@@ -454,6 +455,7 @@ struct WindowState {
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
     app: PlanetApp,
+    hud: Hud,
 }
 
 fn windowed(event_loop: EventLoop<()>, world: World, shot: Shot, options: DrawOptions) -> anyhow::Result<()> {
@@ -607,6 +609,13 @@ impl Windowed {
         };
         let view = texture.texture.create_view(&wgpu::TextureViewDescriptor::default());
         state.app.draw(&view, size, self.shot.background, self.view);
+        // Like the sky, nothing over a background given for crack checks.
+        if self.shot.background.is_none()
+            && let Err(error) = state.hud.draw(state.app.gpu(), &view)
+        {
+            eprintln!("nebula-demo: HUD hidden: {error}");
+            state.hud.visible = false;
+        }
         state.app.gpu().queue.present(texture);
         self.frames += 1;
         if self.frame_clock.elapsed().as_secs_f64() > 0.5 {
@@ -623,6 +632,17 @@ impl Windowed {
                     )
                 },
             );
+            state.hud.set_text(format!(
+                "{ms:.1} ms/frame\n{} chunks, {} triangles\n{} meshing jobs\nLOD {} to {}\naltitude {:.0} m, {:.0} m/s\n{picked}\nplaces {} (M), H hides this",
+                f.chunks,
+                f.triangles,
+                f.jobs_in_flight,
+                lods.first().copied().unwrap_or(0),
+                lods.last().copied().unwrap_or(0),
+                altitude,
+                speed,
+                self.material.name().unwrap_or("?"),
+            ));
             state.window.set_title(&format!(
                 "Nebula — {ms:.1} ms/frame, {} chunks, {} tris, queue {}, LOD {:?}..{:?}, alt {:.0} m, {:?} | {picked} | places {}",
                 f.chunks,
@@ -661,7 +681,8 @@ impl ApplicationHandler for Windowed {
             surface.configure(&gpu.device, &config);
             let mut app = PlanetApp::with_voxels(planet, self.shot.lod_settings(), gpu, shot_view(&self.shot)?)?;
             app.set_draw_options(self.options);
-            Ok(WindowState { window, surface, config, app })
+            let hud = Hud::new(app.gpu(), (config.width, config.height), config.format)?;
+            Ok(WindowState { window, surface, config, app, hud })
         })();
         match result {
             Ok(state) => {
@@ -682,6 +703,7 @@ impl ApplicationHandler for Windowed {
                 if let Some(state) = self.state.as_mut() {
                     (state.config.width, state.config.height) = state.app.gpu().window_size((size.width, size.height));
                     state.surface.configure(&state.app.gpu().device, &state.config);
+                    state.hud.resize(state.app.gpu(), (state.config.width, state.config.height));
                 }
             }
             WindowEvent::KeyboardInput { event, .. } => {
@@ -705,6 +727,11 @@ impl ApplicationHandler for Windowed {
                                     Some(Walker { step_up: voxel * 1.02, ..Walker::new(self.eye - up * 1.6) })
                                 }
                             };
+                        }
+                        KeyCode::KeyH => {
+                            if let Some(state) = self.state.as_mut() {
+                                state.hud.visible = !state.hud.visible;
+                            }
                         }
                         KeyCode::KeyM => {
                             let solid: Vec<Voxel> = Voxel::NAMED
