@@ -536,19 +536,7 @@ impl Gpu {
         if let (Some(_), Some(DepthTarget { sky_group, .. })) = (sky, &self.depth) {
             // Sky, sea and haze over the terrain, from its depth: one
             // full-screen triangle.
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("sky pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = overlay_pass(&mut encoder, target, "sky pass");
             pass.set_pipeline(&self.sky_pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
             pass.set_bind_group(1, sky_group, &[]);
@@ -609,28 +597,23 @@ impl Gpu {
         if self.depth.as_ref().is_some_and(|d| d.size == size) {
             return;
         }
-        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("depth"),
-            size: wgpu::Extent3d { width: size.0.max(1), height: size.1.max(1), depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        let mask = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("sea mask"),
-            size: wgpu::Extent3d { width: size.0.max(1), height: size.1.max(1), depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: SEA_MASK_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
-        let sea_mask = mask.create_view(&wgpu::TextureViewDescriptor::default());
+        // Drawn into by the terrain pass, read by the sky pass.
+        let target = |label: &str, format: wgpu::TextureFormat| {
+            let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width: size.0.max(1), height: size.1.max(1), depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            (texture, view)
+        };
+        let (texture, view) = target("depth", DEPTH_FORMAT);
+        let (mask, sea_mask) = target("sea mask", SEA_MASK_FORMAT);
         let sky_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("sky bind group"),
             layout: &self.sky_layout,
@@ -656,6 +639,28 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
         entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
     });
     (buffer, group)
+}
+
+/// A render pass over `target` that keeps what is drawn there (no depth):
+/// the sky pass and the HUD draw over the terrain this way.
+pub fn overlay_pass<'a>(
+    encoder: &'a mut wgpu::CommandEncoder,
+    target: &'a wgpu::TextureView,
+    label: &str,
+) -> wgpu::RenderPass<'a> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }
 
 /// The terrain pass's depth and sea mask at one size, and the sky pass's

@@ -7,7 +7,7 @@ use wgpu_text::glyph_brush::ab_glyph::FontRef;
 use wgpu_text::glyph_brush::{Section, Text};
 use wgpu_text::{BrushBuilder, TextBrush};
 
-use crate::gpu::Gpu;
+use crate::gpu::{Gpu, overlay_pass};
 
 /// The HUD's font.
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSansMono.ttf");
@@ -65,22 +65,7 @@ impl Hud {
             .with_screen_position((10.0, 8.0));
         self.brush.queue(&gpu.device, &gpu.queue, [&section]).map_err(|e| HudError::Text(e.to_string()))?;
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hud") });
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("hud pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.brush.draw(&mut pass);
-        }
+        self.brush.draw(&mut overlay_pass(&mut encoder, target, "hud pass"));
         gpu.queue.submit([encoder.finish()]);
         Ok(())
     }
