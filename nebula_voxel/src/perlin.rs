@@ -322,19 +322,36 @@ impl Fractal {
         let mut point = point;
         let mut sum = 0.0;
         let mut weight = 1.0;
-        let mut attenuation = match self.kind {
-            FractalKind::Fbm => self.persistence,
-            FractalKind::Ridged => 1.0,
-        };
+        let mut attenuation = self.first_attenuation();
         for source in &self.sources {
-            let signal = source.get(point);
-            match self.kind {
-                FractalKind::Fbm => sum += signal * attenuation,
-                FractalKind::Ridged => sum += ridge(signal, &mut weight) * attenuation,
-            }
+            sum += self.term(source.get(point), &mut weight) * attenuation;
             point = point.map(|c| c * self.lacunarity);
             attenuation *= self.persistence;
         }
+        self.finish(sum)
+    }
+
+    /// The first octave's weight: persistence for `Fbm`, 1 for
+    /// `RidgedMulti`.
+    fn first_attenuation(&self) -> f64 {
+        match self.kind {
+            FractalKind::Fbm => self.persistence,
+            FractalKind::Ridged => 1.0,
+        }
+    }
+
+    /// An octave's contribution (before its weight) from its noise;
+    /// `weight` carries the ridged octaves' weighting along.
+    #[inline(always)]
+    fn term(&self, noise: f64, weight: &mut f64) -> f64 {
+        match self.kind {
+            FractalKind::Fbm => noise,
+            FractalKind::Ridged => ridge(noise, weight),
+        }
+    }
+
+    /// The sum scaled to the noise crate's range.
+    fn finish(&self, sum: f64) -> f64 {
         match self.kind {
             FractalKind::Fbm => sum * self.scale_factor,
             FractalKind::Ridged => sum * self.scale_factor - 1.0,
@@ -350,11 +367,8 @@ impl Fractal {
         let out = &mut out[..n];
         out.fill(0.0);
         let mut points = points[..n].to_vec();
-        let mut weights = if self.kind == FractalKind::Ridged { vec![1.0; n] } else { Vec::new() };
-        let mut attenuation = match self.kind {
-            FractalKind::Fbm => self.persistence,
-            FractalKind::Ridged => 1.0,
-        };
+        let mut weights = vec![1.0; n];
+        let mut attenuation = self.first_attenuation();
         for source in &self.sources {
             let mut cell = Cell::default();
             let mut k = 0;
@@ -366,20 +380,14 @@ impl Fractal {
                 };
                 for (lane, signal) in signals.into_iter().enumerate().take(n - k) {
                     let at = k + lane;
-                    out[at] += match self.kind {
-                        FractalKind::Fbm => signal,
-                        FractalKind::Ridged => ridge(signal, &mut weights[at]),
-                    } * attenuation;
+                    out[at] += self.term(signal, &mut weights[at]) * attenuation;
                     points[at] = points[at].map(|c| c * self.lacunarity);
                 }
                 k += 2;
             }
             attenuation *= self.persistence;
         }
-        match self.kind {
-            FractalKind::Fbm => out.iter_mut().for_each(|sum| *sum *= self.scale_factor),
-            FractalKind::Ridged => out.iter_mut().for_each(|sum| *sum = *sum * self.scale_factor - 1.0),
-        }
+        out.iter_mut().for_each(|sum| *sum = self.finish(*sum));
     }
 }
 
