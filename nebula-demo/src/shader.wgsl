@@ -239,7 +239,8 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     if (height > 0.0 && sea_disc > 0.0 && -b - sqrt(sea_disc) > 0.0) {
         sphere = -b - sqrt(sea_disc);
     }
-    if (sea_bed) {
+    // (From under the sea, the surface is not drawn: the bed shows as it is.)
+    if (sea_bed && height > 0.0) {
         sea = min(sphere, terrain);
     } else if (depth == 0.0 && sphere < 1.0e38) {
         sea = sphere;
