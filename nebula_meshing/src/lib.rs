@@ -7,8 +7,10 @@
 //! 2. greedy quads from block-mesh on the padded 34³ array (material-aware);
 //! 3. T-junction-free triangulation, decided in integer lattice coordinates
 //!    (see [`ChunkMesher`]): every vertex on a quad's edge joins its outline,
-//!    and on chunk boundary planes every lattice point does, so neighbours
-//!    agree on their shared vertices bit for bit;
+//!    and on chunk boundary planes a canonical set of lattice points does
+//!    (a function of the voxels on both sides), so neighbours agree on their
+//!    shared vertices bit for bit; sides meeting another LOD take every
+//!    lattice point unless the skirts are drawn at draw-time depths;
 //! 4. [`constrain_edge_vertices`] for sides whose neighbour is coarser, by
 //!    any LOD difference;
 //! 5. [`generate_skirt`] on sides that meet another LOD, [`skirt_depth`] deep,

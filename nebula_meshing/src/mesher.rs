@@ -15,16 +15,37 @@
 //!                                   corners on one side, so none is flat.
 //! ```
 //!
-//! Which lattice points are on a rectangle's edge is decided in integers:
-//! the corners of every quad in the chunk, plus, on the chunk's boundary
-//! planes, *every* lattice point along the edge. The latter makes the
-//! boundary vertex set a function of the edge alone, so two chunks that
-//! greedy-merge differently still put the same vertices on their shared
-//! boundary.
+//! Which lattice points are on a rectangle's edge is decided in integers.
+//! Inside the chunk: the corners of every quad in the chunk. On the chunk's
+//! boundary planes the two chunks sharing a plane must agree without
+//! seeing each other's quads, so there the vertex set is *canonical*, a
+//! function of the voxels on both sides alone (DESIGN rule 4):
+//!
+//! - a greedy quad touching a boundary plane is kept when its corners on
+//!   that plane are in the canonical set; otherwise, and always for faces
+//!   lying in a boundary plane, the faces next to the plane are meshed as
+//!   strips one voxel wide running along it, ended where the face changes
+//!   (or, near a chunk edge, where the next plane begins, or where a kept
+//!   quad does);
+//! - an edge in a boundary plane is split at every lattice point whose
+//!   2×2×2 voxels are not *plain* (plain: they vary along one axis at most,
+//!   so the surface there is one flat face or none) and at every point
+//!   within one voxel of the chunk's edges.
+//!
+//! Every strip end is such a point, so both chunks put the same vertices on
+//! every line they share. The first version split boundary edges at every
+//! lattice point instead, which made 45 % of an Earth view's triangles.
+//!
+//! A side facing another LOD can still ask for every lattice point
+//! ([`ChunkMesher::mesh_with_dense_sides`]): edge constraining
+//! (`constrain_edge_vertices`) moves the odd ones onto the coarse chords, so
+//! both chunks there must be dense. Both know the LOD relation, so they
+//! agree; streaming meshes, whose skirts close LOD seams, stay canonical.
 
-use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, greedy_quads};
+use block_mesh::ndshape::ConstShape;
+use block_mesh::{GreedyQuadsBuffer, OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad, greedy_quads};
 use nebula_math::{DVec3, FaceDirection, Vec3};
-use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_VOLUME, PaddedChunkShape};
+use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_VOLUME, PaddedChunkShape, Voxel};
 
 use crate::MeshError;
 use crate::mesh::{ChunkMesh, VertexSource};
@@ -32,11 +53,29 @@ use crate::mesh::{ChunkMesh, VertexSource};
 /// Lattice points per axis of a chunk: 0..=32.
 const POINTS: usize = CHUNK_SIZE as usize + 1;
 
+/// The last lattice coordinate of a chunk (its far boundary plane).
+const LAST: i32 = CHUNK_SIZE as i32;
+
+/// Which lattice points on a chunk's boundary planes become vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum BoundaryVertices {
+    /// The canonical set (see the module docs): what meshing uses.
+    Canonical,
+    /// Only the corners of this chunk's own quads, as inside the chunk:
+    /// what two neighbours cannot agree on. Tests use it to show that the
+    /// seam checks fail without the canonical set.
+    #[cfg(test)]
+    OwnCornersOnly,
+}
+
 /// Reusable scratch memory for greedy meshing one chunk after another.
 pub struct ChunkMesher {
     greedy: GreedyQuadsBuffer,
     /// Per lattice point: equal to `stamp` when some quad has a corner there.
     corner_stamp: Vec<u32>,
+    /// Per (face direction, padded voxel): equal to `stamp` when a kept
+    /// greedy quad touching a boundary plane covers that face.
+    covered_stamp: Vec<u32>,
     /// Per (lattice point, side): `(stamp, vertex index)`.
     vertex_slot: Vec<(u32, u32)>,
     /// Per lattice column (x, z): `(stamp, unit direction)`.
@@ -51,6 +90,10 @@ pub struct ChunkMesher {
     chain_b: Vec<[i32; 3]>,
     index_a: Vec<u32>,
     index_b: Vec<u32>,
+    pub(crate) boundary_vertices: BoundaryVertices,
+    /// Per horizontal side (index as in [`FaceDirection::HORIZONTAL`]):
+    /// every lattice point on its plane is a vertex.
+    dense_sides: [bool; 4],
 }
 
 impl Default for ChunkMesher {
@@ -66,6 +109,7 @@ impl ChunkMesher {
         Self {
             greedy: GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME),
             corner_stamp: vec![0; POINTS * POINTS * POINTS],
+            covered_stamp: vec![0; 6 * PADDED_CHUNK_VOLUME],
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
             point_world: vec![(0, DVec3::ZERO); POINTS * POINTS * POINTS],
@@ -75,6 +119,8 @@ impl ChunkMesher {
             chain_b: Vec::new(),
             index_a: Vec::new(),
             index_b: Vec::new(),
+            boundary_vertices: BoundaryVertices::Canonical,
+            dense_sides: [false; 4],
         }
     }
 
@@ -84,6 +130,24 @@ impl ChunkMesher {
     /// # Errors
     /// [`MeshError`] if the chunk key is not on the planet.
     pub fn mesh(&mut self, voxels: &ChunkVoxels, layout: &ChunkLayout) -> Result<ChunkMesh, MeshError> {
+        self.mesh_with_dense_sides(voxels, layout, &[])
+    }
+
+    /// [`ChunkMesher::mesh`], with every lattice point on the planes of
+    /// `dense_sides` (horizontal sides) a vertex, as edge constraining
+    /// towards a coarser neighbour needs, and as that neighbour then needs
+    /// on its side too. Radial sides in `dense_sides` are ignored: chunks
+    /// above and below are always at the same LOD.
+    ///
+    /// # Errors
+    /// [`MeshError`] if the chunk key is not on the planet.
+    pub fn mesh_with_dense_sides(
+        &mut self,
+        voxels: &ChunkVoxels,
+        layout: &ChunkLayout,
+        dense_sides: &[FaceDirection],
+    ) -> Result<ChunkMesh, MeshError> {
+        self.dense_sides = FaceDirection::HORIZONTAL.map(|side| dense_sides.contains(&side));
         let key = voxels.key();
         let origin = layout.chunk_origin(key)?;
         let mut mesh = ChunkMesh::empty(key, *layout, origin);
@@ -102,6 +166,7 @@ impl ChunkMesher {
         if self.stamp == 0 {
             // Wrapped: forget every old stamp.
             self.corner_stamp.fill(0);
+            self.covered_stamp.fill(0);
             self.vertex_slot.fill((0, 0));
             self.column_direction.fill((0, DVec3::ZERO));
             self.point_world.fill((0, DVec3::ZERO));
@@ -115,8 +180,26 @@ impl ChunkMesher {
         let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
         let last = CHUNK_SIZE + 1;
         greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [last; 3], faces, &mut self.greedy);
+        let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         let stamp = self.next_stamp();
-        for (group, face) in self.greedy.quads.groups.iter().zip(faces) {
+        let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
+        for (direction, (group, face)) in groups.iter_mut().zip(faces).enumerate() {
+            let axes = FaceAxes::of(face);
+            let covered = &mut self.covered_stamp[direction * PADDED_CHUNK_VOLUME..][..PADDED_CHUNK_VOLUME];
+            group.retain_mut(|quad| {
+                if !axes.touches_boundary(quad) {
+                    return true;
+                }
+                if canonical && axes.keeps_canonical_corners(quad, voxels) {
+                    axes.for_each_face(quad, |padded| covered[PaddedChunkShape::linearize(padded) as usize] = stamp);
+                    return true;
+                }
+                axes.clip_to_interior(quad)
+            });
+            let is_covered = |padded: [u32; 3]| covered[PaddedChunkShape::linearize(padded) as usize] == stamp;
+            axes.push_boundary_strips(voxels, &is_covered, group);
+        }
+        for (group, face) in groups.iter().zip(faces) {
             for quad in group {
                 for corner in face.quad_corners(quad) {
                     let local = corner.to_array().map(|c| c as i32 - 1);
@@ -124,22 +207,20 @@ impl ChunkMesher {
                 }
             }
         }
-        let quads = self.greedy.quads.num_quads();
+        let quads: usize = groups.iter().map(Vec::len).sum();
         // A quad has 4 corners and 2 triangles before T-junction repair.
         mesh.vertices.reserve(4 * quads);
         mesh.world.reserve(4 * quads);
         mesh.morph_world.reserve(4 * quads);
         mesh.sources.reserve(4 * quads);
         mesh.indices.reserve(8 * quads);
-        let groups = std::mem::take(&mut self.greedy.quads.groups);
         let mut result = Ok(());
         'faces: for (group, face) in groups.iter().zip(faces) {
             let normal = face.signed_normal().to_array();
-            let side = side_of(normal);
             for quad in group {
                 let corners = face.quad_corners(quad).map(|c| c.to_array().map(|v| v as i32 - 1));
                 let material = voxels.get(quad.minimum).map_or(0, |v| v.material());
-                if let Err(error) = self.triangulate(corners, normal, side, u16::from(material), layout, mesh) {
+                if let Err(error) = self.triangulate(corners, normal, u16::from(material), voxels, layout, mesh) {
                     result = Err(error);
                     break 'faces;
                 }
@@ -155,11 +236,12 @@ impl ChunkMesher {
         &mut self,
         corners: [[i32; 3]; 4],
         normal: [i32; 3],
-        side: FaceDirection,
         material: u16,
+        voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
     ) -> Result<(), MeshError> {
+        let side = side_of(normal);
         // block-mesh order: 0 = (min u, min v), 1 = (max u, min v),
         // 2 = (min u, max v), 3 = (max u, max v).
         let [bl, br, tl, tr] = corners;
@@ -167,11 +249,11 @@ impl ChunkMesher {
         chain_a.clear();
         chain_b.clear();
         // A: tl → bl → br; B: tl → tr → br.
-        self.walk_edge(tl, bl, &mut chain_a);
-        self.walk_edge(bl, br, &mut chain_a);
+        self.walk_edge(tl, bl, voxels, &mut chain_a);
+        self.walk_edge(bl, br, voxels, &mut chain_a);
         chain_a.push(br);
-        self.walk_edge(tl, tr, &mut chain_b);
-        self.walk_edge(tr, br, &mut chain_b);
+        self.walk_edge(tl, tr, voxels, &mut chain_b);
+        self.walk_edge(tr, br, voxels, &mut chain_b);
         chain_b.push(br);
 
         // Resolve every chain point to its vertex once.
@@ -229,16 +311,35 @@ impl ChunkMesher {
 
     /// Pushes `from` and every vertex strictly between `from` and `to` (not
     /// `to` itself) onto `chain`.
-    fn walk_edge(&self, from: [i32; 3], to: [i32; 3], chain: &mut Vec<[i32; 3]>) {
+    fn walk_edge(&self, from: [i32; 3], to: [i32; 3], voxels: &ChunkVoxels, chain: &mut Vec<[i32; 3]>) {
         chain.push(from);
         let axis = (0..3).find(|&k| from[k] != to[k]).unwrap_or(0);
         let step = (to[axis] - from[axis]).signum();
-        // An edge lying in a chunk boundary plane takes every lattice point.
-        let on_boundary = (0..3).any(|k| k != axis && (from[k] == 0 || from[k] == CHUNK_SIZE as i32));
+        let planes = || (0..3).filter(|&k| k != axis && (from[k] == 0 || from[k] == LAST));
+        let dense = planes().any(|k| {
+            let side =
+                FaceDirection::HORIZONTAL.iter().position(|s| s.axis() == k && s.is_positive() == (from[k] == LAST));
+            side.is_some_and(|i| self.dense_sides[i])
+        });
+        let canonical = planes().next().is_some() && self.boundary_vertices == BoundaryVertices::Canonical;
         let mut point = from;
         point[axis] += step;
         while point[axis] != to[axis] {
-            if on_boundary || self.corner_stamp[point_index(point)] == self.stamp {
+            let corner = self.corner_stamp[point_index(point)] == self.stamp;
+            // Every corner on a boundary plane is canonical (strips end
+            // only there), so the canonical set includes them.
+            debug_assert!(
+                !canonical || !corner || is_boundary_vertex(voxels, point),
+                "corner {point:?} off the canonical set"
+            );
+            let vertex = if dense {
+                true
+            } else if canonical {
+                is_boundary_vertex(voxels, point)
+            } else {
+                corner
+            };
+            if vertex {
                 chain.push(point);
             }
             point[axis] += step;
@@ -323,6 +424,190 @@ impl ChunkMesher {
             self.wall_normal[slot] = (self.stamp, layout.sphere().lattice_plane_normal(key.face, along_u, coord));
         }
         (self.wall_normal[slot].1 * sign).as_vec3()
+    }
+}
+
+/// Whether lattice point `local`, on a boundary plane, is in the canonical
+/// boundary vertex set: within one voxel of a chunk edge, or where its
+/// 2×2×2 voxels are not plain (see the module docs). Reads only voxels both
+/// chunks sharing the plane hold (their padding).
+fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3]) -> bool {
+    let on_plane = |c: i32| c == 0 || c == LAST;
+    let near_plane = |c: i32| c <= 1 || c >= LAST - 1;
+    let near_edge = (0..3).any(|i| on_plane(local[i]) && (0..3).any(|j| j != i && near_plane(local[j])));
+    if near_edge {
+        return true;
+    }
+    // The voxels below and above the point on each axis: local p − 1 and
+    // p, padded p and p + 1.
+    let at = |d: [i32; 3]| voxels.get([0, 1, 2].map(|k| (local[k] + d[k]) as u32)).unwrap_or(Voxel::AIR);
+    let mut cube = [Voxel::AIR; 8];
+    for (i, voxel) in cube.iter_mut().enumerate() {
+        *voxel = at([(i & 1) as i32, ((i >> 1) & 1) as i32, ((i >> 2) & 1) as i32]);
+    }
+    // Along axis k the two halves of the cube are equal.
+    let invariant = |k: usize| (0..8).filter(|i| i & (1 << k) == 0).all(|i| cube[i] == cube[i | (1 << k)]);
+    let plain_axes = (0..3).filter(|&k| invariant(k)).count();
+    plain_axes < 2
+}
+
+/// A block-mesh face's axes: normal `n` (with its sign) and the quad's
+/// `u` (width) and `v` (height) axes.
+struct FaceAxes {
+    face: OrientedBlockFace,
+    n: usize,
+    u: usize,
+    v: usize,
+    positive: bool,
+}
+
+impl FaceAxes {
+    fn of(face: &OrientedBlockFace) -> Self {
+        let unit = UnorientedQuad { minimum: [1; 3], width: 1, height: 1 };
+        let [c0, c1, c2, _] = face.quad_corners(&unit).map(|c| c.to_array());
+        let axis_of = |a: [u32; 3], b: [u32; 3]| (0..3).find(|&k| a[k] != b[k]).unwrap_or(0);
+        let normal = face.signed_normal().to_array();
+        let n = (0..3).find(|&k| normal[k] != 0).unwrap_or(0);
+        Self { face: *face, n, u: axis_of(c0, c1), v: axis_of(c0, c2), positive: normal[n] > 0 }
+    }
+
+    /// The local plane coordinate of faces of voxels in local layer `layer`
+    /// along the normal.
+    fn plane_of(&self, layer: i32) -> i32 {
+        layer + i32::from(self.positive)
+    }
+
+    /// The local lattice corners of `quad`.
+    fn corners(&self, quad: &UnorientedQuad) -> [[i32; 3]; 4] {
+        self.face.quad_corners(quad).map(|c| c.to_array().map(|v| v as i32 - 1))
+    }
+
+    /// Whether some face of `quad` has an edge on a boundary plane.
+    fn touches_boundary(&self, quad: &UnorientedQuad) -> bool {
+        self.corners(quad).iter().flatten().any(|&c| c == 0 || c == LAST)
+    }
+
+    /// Whether `quad` may stay whole although it touches a boundary plane:
+    /// it does not lie in one, and each of its corners on one is in the
+    /// canonical set.
+    fn keeps_canonical_corners(&self, quad: &UnorientedQuad, voxels: &ChunkVoxels) -> bool {
+        let plane = self.plane_of(quad.minimum[self.n] as i32 - 1);
+        plane != 0
+            && plane != LAST
+            && self
+                .corners(quad)
+                .into_iter()
+                .all(|corner| !corner.iter().any(|&c| c == 0 || c == LAST) || is_boundary_vertex(voxels, corner))
+    }
+
+    /// Calls `f` with the padded voxel of every face of `quad`.
+    fn for_each_face(&self, quad: &UnorientedQuad, mut f: impl FnMut([u32; 3])) {
+        for dv in 0..quad.height {
+            for du in 0..quad.width {
+                let mut padded = quad.minimum;
+                padded[self.u] += du;
+                padded[self.v] += dv;
+                f(padded);
+            }
+        }
+    }
+
+    /// Clips a greedy quad to the faces touching no boundary plane: none
+    /// lies in one, and none is in the first or last row along `u` or `v`.
+    /// Returns `false` when nothing is left.
+    fn clip_to_interior(&self, quad: &mut UnorientedQuad) -> bool {
+        let plane = self.plane_of(quad.minimum[self.n] as i32 - 1);
+        if plane == 0 || plane == LAST {
+            return false;
+        }
+        let clip = |start: u32, len: u32| {
+            // Padded voxel rows 2..=31 are local 1..=30.
+            let (low, high) = (start.max(2), (start + len).min(LAST as u32));
+            (low < high).then_some((low, high - low))
+        };
+        let (Some((u0, width)), Some((v0, height))) =
+            (clip(quad.minimum[self.u], quad.width), clip(quad.minimum[self.v], quad.height))
+        else {
+            return false;
+        };
+        quad.minimum[self.u] = u0;
+        quad.minimum[self.v] = v0;
+        quad.width = width;
+        quad.height = height;
+        true
+    }
+
+    /// Pushes the faces touching a boundary plane as strips: the faces in
+    /// the plane along `u`, and the others along the plane they touch
+    /// (single faces where they touch two), each strip ended where the
+    /// face changes.
+    fn push_boundary_strips(
+        &self,
+        voxels: &ChunkVoxels,
+        is_covered: &impl Fn([u32; 3]) -> bool,
+        quads: &mut Vec<UnorientedQuad>,
+    ) {
+        let edge_rows = [0, LAST - 1];
+        let boundary_layer = if self.positive { LAST - 1 } else { 0 };
+        // The faces lying in the boundary plane.
+        for v in 0..LAST {
+            self.push_runs(voxels, is_covered, [boundary_layer, 0, v], self.u, LAST, quads);
+        }
+        for layer in (0..LAST).filter(|&layer| layer != boundary_layer) {
+            for row in edge_rows {
+                // Faces along a boundary plane across `v`, then across `u`.
+                self.push_runs(voxels, is_covered, [layer, 1, row], self.u, LAST - 2, quads);
+                self.push_runs(voxels, is_covered, [layer, row, 1], self.v, LAST - 2, quads);
+                for column in edge_rows {
+                    self.push_runs(voxels, is_covered, [layer, column, row], self.u, 1, quads);
+                }
+            }
+        }
+    }
+
+    /// Pushes one quad per run of equal visible faces among `count` faces
+    /// from the face of local voxel `(layer, u, v) = start` along `along`;
+    /// faces covered by a kept quad end a run.
+    fn push_runs(
+        &self,
+        voxels: &ChunkVoxels,
+        is_covered: &impl Fn([u32; 3]) -> bool,
+        start: [i32; 3],
+        along: usize,
+        count: i32,
+        quads: &mut Vec<UnorientedQuad>,
+    ) {
+        let mut run: Option<(UnorientedQuad, Voxel)> = None;
+        for step in 0..=count {
+            let face = (step < count).then(|| {
+                let mut local = [0; 3];
+                local[self.n] = start[0];
+                local[self.u] = start[1];
+                local[self.v] = start[2];
+                local[along] += step;
+                let padded = local.map(|c| (c + 1) as u32);
+                let voxel = voxels.get(padded).unwrap_or(Voxel::AIR);
+                let mut beyond = padded;
+                beyond[self.n] = if self.positive { beyond[self.n] + 1 } else { beyond[self.n] - 1 };
+                let open = !voxels.get(beyond).is_some_and(Voxel::is_solid);
+                (voxel.is_solid() && open && !is_covered(padded)).then_some((padded, voxel))
+            });
+            match (&mut run, face.flatten()) {
+                (Some((quad, voxel)), Some((_, next))) if *voxel == next => {
+                    if along == self.u {
+                        quad.width += 1
+                    } else {
+                        quad.height += 1
+                    }
+                }
+                (_, next) => {
+                    if let Some((quad, _)) = run.take() {
+                        quads.push(quad);
+                    }
+                    run = next.map(|(minimum, voxel)| (UnorientedQuad { minimum, width: 1, height: 1 }, voxel));
+                }
+            }
+        }
     }
 }
 

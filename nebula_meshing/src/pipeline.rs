@@ -90,7 +90,18 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     let mut mesh = if voxels.has_no_surface() {
         ChunkMesh::empty(key, *layout, layout.chunk_origin(key)?)
     } else {
-        buffer.mesher.mesh(voxels, layout)?
+        // Sides to another LOD are closed by constraining or by skirts
+        // made for that LOD: both need every lattice point there. Meshes
+        // for draw-time skirts must not depend on the neighbours' LODs.
+        let dense_sides: Vec<FaceDirection> = if options.draw_time_skirts {
+            Vec::new()
+        } else {
+            FaceDirection::HORIZONTAL
+                .into_iter()
+                .filter(|&side| context.relation(side) != NeighborLodRelation::Same)
+                .collect()
+        };
+        buffer.mesher.mesh_with_dense_sides(voxels, layout, &dense_sides)?
     };
     for side in FaceDirection::HORIZONTAL {
         if let (true, Some(lod_diff)) = (options.constrain_edges, context.coarser_neighbor_diff(side)) {

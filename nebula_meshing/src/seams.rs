@@ -141,9 +141,9 @@ pub fn generate_skirt(
 /// one at `coarse_lod`, in metres, for every geomorph state of both:
 ///
 /// ```text
-///   depth = δ(fine + 1) + δ(coarse + 1) + sagitta(coarse + 1) + bias
-///   sagitta(L) = (1.5 · 2^L · cell width)² / (8 · radius)   chord sag of one
-///                                                          coarse voxel edge
+///   depth = δ(fine + 1) + δ(coarse + 1) + sagitta(coarse) + bias
+///   sagitta(L) = (1.5 · 32 · 2^L · cell width)² / (8 · radius)   chord sag of
+///                                                    a whole chunk side at L
 ///   bias = one voxel at the fine LOD
 ///   (LODs past the planet's coarsest are clamped to it: it never morphs)
 /// ```
@@ -152,8 +152,9 @@ pub fn generate_skirt(
 /// radially (see `nebula_voxel::ProceduralPlanet`). A chunk at LOD `L`
 /// morphing towards its parent lies between its own surface and the
 /// parent's, so within δ(L + 1); the two sides of the edge differ by at most
-/// δ(fine + 1) + δ(coarse + 1) anywhere along it. Coarse edges, morphed or
-/// not, are chords that sag below the sphere by up to the sagitta (1.5
+/// δ(fine + 1) + δ(coarse + 1) anywhere along it. Edges on a chunk's side,
+/// morphed or not, are chords between its canonical boundary vertices, at
+/// most the side long, that sag below the sphere by up to the sagitta (1.5
 /// covers the longest equi-angular cell edge, √2 × the shortest). The bias
 /// absorbs the staircase of the voxel surface itself. The order of the two
 /// LODs does not matter.
@@ -163,7 +164,7 @@ pub fn skirt_depth<S: VoxelSource + ?Sized>(source: &S, fine_lod: u8, coarse_lod
     let sphere = layout.sphere();
     let (fine_lod, coarse_lod) = (fine_lod.min(coarse_lod), fine_lod.max(coarse_lod));
     let morphed = |lod: u8| lod.saturating_add(1).min(layout.max_lod());
-    let chord = 1.5 * layout.voxel_span(morphed(coarse_lod)) as f64 * sphere.cell_width();
+    let chord = 1.5 * f64::from(CHUNK_SIZE) * layout.voxel_span(coarse_lod) as f64 * sphere.cell_width();
     let sagitta = chord * chord / (8.0 * sphere.radius());
     let bias = layout.voxel_span(fine_lod) as f64 * sphere.layer_height();
     source.geometric_error(morphed(fine_lod)) + source.geometric_error(morphed(coarse_lod)) + sagitta + bias
