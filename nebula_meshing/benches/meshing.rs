@@ -3,6 +3,11 @@
 //! For the same padded chunks (a surface chunk of the Earth-sized planet at
 //! LOD 0 and at LOD 5, and a worst case of random 50 % voxels):
 //! - `greedy_quads`: block-mesh's greedy meshing alone (the baseline);
+//! - `binary_greedy_quads`: block-mesh-bgm's bitmask greedy meshing alone,
+//!   the same faces as block-mesh (what `surface` runs on);
+//! - `bgm_fast_mesh`: the binary-greedy-meshing crate's `fast_mesh` alone,
+//!   with its opacity masks built outside the timing (it expects a game to
+//!   keep them up to date);
 //! - `surface`: greedy quads → T-junction-free triangles on the sphere;
 //! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
 //!   and a skirt there) from the already generated voxels.
@@ -13,6 +18,7 @@
 
 use std::collections::HashMap;
 
+use binary_greedy_meshing as bgm;
 use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, UnitQuadBuffer, greedy_quads, visible_block_faces};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nebula_meshing::{
@@ -80,6 +86,26 @@ fn surface_chunk(planet: &ProceduralPlanet, column: ChunkColumn) -> ChunkVoxels 
     best
 }
 
+/// The chunk in binary-greedy-meshing's layout (34³, z fastest, then x,
+/// then y) and its opacity mask (one u64 per (y, x) column, bit z).
+fn bgm_input(voxels: &ChunkVoxels) -> (Vec<u16>, Vec<u64>) {
+    const P: usize = 34;
+    let mut out = vec![0u16; P * P * P];
+    let mut opaque = vec![0u64; P * P];
+    for y in 0..P {
+        for x in 0..P {
+            for z in 0..P {
+                let voxel = voxels.get([x as u32, y as u32, z as u32]).unwrap_or(Voxel::AIR);
+                out[z + x * P + y * P * P] = u16::from(voxel.material());
+                if voxel.is_solid() {
+                    opaque[x + y * P] |= 1 << z;
+                }
+            }
+        }
+    }
+    (out, opaque)
+}
+
 fn noisy_chunk(key: ChunkKey) -> ChunkVoxels {
     let mut state = 0x2545_F491_4F6C_DD1D_u64;
     let voxels = (0..PADDED_CHUNK_VOLUME)
@@ -121,6 +147,42 @@ fn meshing(c: &mut Criterion) {
         );
         group.bench_function(BenchmarkId::new(format!("{name}/greedy_quads"), format!("quads={quads}")), |b| {
             b.iter(|| greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut greedy));
+        });
+        let mut binary = block_mesh_bgm::BinaryGreedyQuadsBuffer::new();
+        block_mesh_bgm::binary_greedy_quads(
+            voxels.as_slice(),
+            &PaddedChunkShape {},
+            [0; 3],
+            [33; 3],
+            faces,
+            &mut binary,
+        );
+        let binary_quads = binary.quads.num_quads();
+        group.bench_function(
+            BenchmarkId::new(format!("{name}/binary_greedy_quads"), format!("quads={binary_quads}")),
+            |b| {
+                b.iter(|| {
+                    block_mesh_bgm::binary_greedy_quads(
+                        voxels.as_slice(),
+                        &PaddedChunkShape {},
+                        [0; 3],
+                        [33; 3],
+                        faces,
+                        &mut binary,
+                    );
+                });
+            },
+        );
+        let (bgm_voxels, bgm_opaque) = bgm_input(voxels);
+        let bgm_transparent = vec![0u64; bgm_opaque.len()];
+        let mut bgm = bgm::Mesher::<32>::new();
+        bgm.fast_mesh(&bgm_voxels, &bgm_opaque, &bgm_transparent);
+        let bgm_quads: usize = bgm.quads.iter().map(Vec::len).sum();
+        group.bench_function(BenchmarkId::new(format!("{name}/bgm_fast_mesh"), format!("quads={bgm_quads}")), |b| {
+            b.iter(|| {
+                bgm.clear();
+                bgm.fast_mesh(&bgm_voxels, &bgm_opaque, &bgm_transparent);
+            });
         });
         group.bench_function(BenchmarkId::new(format!("{name}/surface"), format!("tris={surface_tris}")), |b| {
             b.iter(|| mesher.mesh(voxels, planet.layout()).expect("valid chunk"));

@@ -43,7 +43,8 @@
 //! agree; streaming meshes, whose skirts close LOD seams, stay canonical.
 
 use block_mesh::ndshape::ConstShape;
-use block_mesh::{GreedyQuadsBuffer, OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad, greedy_quads};
+use block_mesh::{OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad};
+use block_mesh_bgm::{BinaryGreedyQuadsBuffer, binary_greedy_quads};
 use nebula_math::{DVec3, FaceDirection, Vec3};
 use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_VOLUME, PaddedChunkShape, Voxel};
 
@@ -70,7 +71,7 @@ pub(crate) enum BoundaryVertices {
 
 /// Reusable scratch memory for greedy meshing one chunk after another.
 pub struct ChunkMesher {
-    greedy: GreedyQuadsBuffer,
+    greedy: BinaryGreedyQuadsBuffer,
     /// Per lattice point: equal to `stamp` when some quad has a corner there.
     corner_stamp: Vec<u32>,
     /// Per (face direction, padded voxel): equal to `stamp` when a kept
@@ -107,7 +108,7 @@ impl ChunkMesher {
     #[must_use]
     pub fn new() -> Self {
         Self {
-            greedy: GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME),
+            greedy: BinaryGreedyQuadsBuffer::new(),
             corner_stamp: vec![0; POINTS * POINTS * POINTS],
             covered_stamp: vec![0; 6 * PADDED_CHUNK_VOLUME],
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
@@ -179,7 +180,7 @@ impl ChunkMesher {
     fn mesh_into(&mut self, voxels: &ChunkVoxels, layout: &ChunkLayout, mesh: &mut ChunkMesh) -> Result<(), MeshError> {
         let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
         let last = CHUNK_SIZE + 1;
-        greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [last; 3], faces, &mut self.greedy);
+        binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [last; 3], faces, &mut self.greedy);
         let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         let stamp = self.next_stamp();
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
@@ -196,8 +197,8 @@ impl ChunkMesher {
                 }
                 axes.clip_to_interior(quad)
             });
-            let is_covered = |padded: [u32; 3]| covered[PaddedChunkShape::linearize(padded) as usize] == stamp;
-            axes.push_boundary_strips(voxels, &is_covered, group);
+            let is_covered = |index: usize| covered[index] == stamp;
+            axes.push_boundary_strips(voxels.as_slice(), &is_covered, group);
         }
         for (group, face) in groups.iter().zip(faces) {
             for quad in group {
@@ -543,8 +544,8 @@ impl FaceAxes {
     /// face changes.
     fn push_boundary_strips(
         &self,
-        voxels: &ChunkVoxels,
-        is_covered: &impl Fn([u32; 3]) -> bool,
+        voxels: &[Voxel],
+        is_covered: &impl Fn(usize) -> bool,
         quads: &mut Vec<UnorientedQuad>,
     ) {
         let edge_rows = [0, LAST - 1];
@@ -570,41 +571,45 @@ impl FaceAxes {
     /// faces covered by a kept quad end a run.
     fn push_runs(
         &self,
-        voxels: &ChunkVoxels,
-        is_covered: &impl Fn([u32; 3]) -> bool,
+        voxels: &[Voxel],
+        is_covered: &impl Fn(usize) -> bool,
         start: [i32; 3],
         along: usize,
         count: i32,
         quads: &mut Vec<UnorientedQuad>,
     ) {
-        let mut run: Option<(UnorientedQuad, Voxel)> = None;
-        for step in 0..=count {
-            let face = (step < count).then(|| {
-                let mut local = [0; 3];
-                local[self.n] = start[0];
-                local[self.u] = start[1];
-                local[self.v] = start[2];
-                local[along] += step;
-                let padded = local.map(|c| (c + 1) as u32);
-                let voxel = voxels.get(padded).unwrap_or(Voxel::AIR);
-                let mut beyond = padded;
-                beyond[self.n] = if self.positive { beyond[self.n] + 1 } else { beyond[self.n] - 1 };
-                let open = !voxels.get(beyond).is_some_and(Voxel::is_solid);
-                (voxel.is_solid() && open && !is_covered(padded)).then_some((padded, voxel))
-            });
-            match (&mut run, face.flatten()) {
-                (Some((quad, voxel)), Some((_, next))) if *voxel == next => {
-                    if along == self.u {
-                        quad.width += 1
-                    } else {
-                        quad.height += 1
-                    }
-                }
+        let mut padded = [0; 3];
+        padded[self.n] = start[0] as u32 + 1;
+        padded[self.u] = start[1] as u32 + 1;
+        padded[self.v] = start[2] as u32 + 1;
+        let stride = |axis: usize| {
+            let mut unit = [0; 3];
+            unit[axis] = 1;
+            PaddedChunkShape::linearize(unit) as usize
+        };
+        let (first, step_along, step_out) =
+            (PaddedChunkShape::linearize(padded) as usize, stride(along), stride(self.n));
+        // The run so far: first step, length, voxel.
+        let mut run: Option<(u32, u32, Voxel)> = None;
+        for step in 0..=count as u32 {
+            let face = (step < count as u32)
+                .then(|| {
+                    let at = first + step as usize * step_along;
+                    let beyond = if self.positive { at + step_out } else { at - step_out };
+                    let voxel = voxels[at];
+                    (voxel.is_solid() && !voxels[beyond].is_solid() && !is_covered(at)).then_some(voxel)
+                })
+                .flatten();
+            match (&mut run, face) {
+                (Some((_, length, voxel)), Some(next)) if *voxel == next => *length += 1,
                 (_, next) => {
-                    if let Some((quad, _)) = run.take() {
-                        quads.push(quad);
+                    if let Some((from, length, _)) = run.take() {
+                        let mut minimum = padded;
+                        minimum[along] += from;
+                        let (width, height) = if along == self.u { (length, 1) } else { (1, length) };
+                        quads.push(UnorientedQuad { minimum, width, height });
                     }
-                    run = next.map(|(minimum, voxel)| (UnorientedQuad { minimum, width: 1, height: 1 }, voxel));
+                    run = next.map(|voxel| (step, 1, voxel));
                 }
             }
         }

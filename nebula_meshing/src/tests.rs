@@ -427,6 +427,43 @@ proptest! {
         prop_assert_eq!(mesh.indices(), again.indices());
     }
 
+    /// The binary greedy mesher (block-mesh-bgm) covers exactly the faces
+    /// block-mesh's greedy meshing covers, each once, with the material of
+    /// the voxel it belongs to: block-mesh stays the reference.
+    #[test]
+    fn binary_greedy_covers_the_faces_block_mesh_covers(bits in proptest::collection::vec(any::<u8>(), 34 * 34 * 34), density in 0u8..=255) {
+        use block_mesh::{GreedyQuadsBuffer, QuadBuffer, RIGHT_HANDED_Y_UP_CONFIG, greedy_quads};
+        use nebula_voxel::{PADDED_CHUNK_VOLUME, PaddedChunkShape};
+        let voxels = random_chunk(&bits, density);
+        let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
+        let covered = |quads: &QuadBuffer| {
+            let mut cells: HashMap<(usize, [u32; 3]), u32> = HashMap::new();
+            for (direction, (group, face)) in quads.groups.iter().zip(faces).enumerate() {
+                let [c0, c1, c2, _] = face.quad_corners(&block_mesh::UnorientedQuad { minimum: [1; 3], width: 1, height: 1 });
+                let (u, v) = ((c1 - c0).to_array(), (c2 - c0).to_array());
+                for quad in group {
+                    let material = voxels.get(quad.minimum).map(Voxel::material);
+                    for j in 0..quad.height {
+                        for i in 0..quad.width {
+                            let cell = [0, 1, 2].map(|k| quad.minimum[k] + i * u[k] + j * v[k]);
+                            // Every face of a quad has the quad's material.
+                            assert_eq!(voxels.get(cell).map(Voxel::material), material);
+                            *cells.entry((direction, cell)).or_insert(0) += 1;
+                        }
+                    }
+                }
+            }
+            cells
+        };
+        let mut reference = GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME);
+        greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut reference);
+        let mut binary = block_mesh_bgm::BinaryGreedyQuadsBuffer::new();
+        block_mesh_bgm::binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut binary);
+        let (expected, got) = (covered(&reference.quads), covered(&binary.quads));
+        prop_assert!(got.values().all(|&n| n == 1), "a face covered twice");
+        prop_assert_eq!(expected, got);
+    }
+
     /// Two chunks of arbitrary voxels side by side, along each axis, close
     /// up across the plane they share: no T-junction, no open edge.
     #[test]
