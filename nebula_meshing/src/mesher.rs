@@ -1,10 +1,11 @@
 //! Greedy quads → T-junction-free triangles on the sphere.
 //!
 //! ```text
-//!   block-mesh gives rectangles (greedy quads) in lattice space. On the
-//!   sphere each is curved, so a vertex of a neighbouring quad that lies on
-//!   a rectangle's edge would float off that edge's chord (a T-junction that
-//!   leaks light). Every such vertex becomes part of the rectangle's
+//!   block-mesh-bgm's bitmask greedy meshing (the faces block-mesh's
+//!   `greedy_quads` covers, about 10× faster) gives rectangles (greedy
+//!   quads) in lattice space. On the sphere each is curved, so a vertex of
+//!   a neighbouring quad that lies on a rectangle's edge would float off
+//!   that edge's chord (a T-junction that leaks light). Every such vertex becomes part of the rectangle's
 //!   outline, and the outline is triangulated as two chains zipped together:
 //!
 //!      tl ── t ──── t ── tr         chain A: tl ↓ left ↓ bl → bottom → br
