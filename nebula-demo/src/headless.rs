@@ -105,6 +105,18 @@ pub struct Figures {
     /// Bytes of the GPU buffers holding the meshes (arena pages, used or
     /// not).
     pub gpu_buffer_bytes: u64,
+    /// Pixels in the picture (for triangles per pixel).
+    pub pixels: u64,
+}
+
+/// The process's peak resident memory so far (Linux `VmHWM`), bytes;
+/// `None` where the system does not say.
+#[must_use]
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 /// The first frame is drawn once no visible leaf is stood in for by an
@@ -265,6 +277,7 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
             draw_ms,
             check_ms: started.elapsed().as_secs_f64() * 1e3,
             gpu_buffer_bytes: app.gpu().mesh_buffer_bytes(),
+            pixels: u64::from(shot.size.0) * u64::from(shot.size.1),
             ..Figures::default()
         },
         rgba,
@@ -315,6 +328,8 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "gpu_mesh_buffer_bytes": figures.gpu_buffer_bytes,
         "mesh_bytes_held": f.held_bytes,
         "triangles": f.triangles,
+        "triangles_per_pixel": f.triangles as f64 / figures.pixels.max(1) as f64,
+        "peak_rss_bytes": peak_rss_bytes(),
         "skirt_triangles": f.skirt_triangles,
         "skirt_triangles_held": f.skirt_triangles_held,
         "stand_ins": f.stand_ins,

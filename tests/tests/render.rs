@@ -71,7 +71,15 @@ fn settled(name: &str, settings: &PlanetSettings, shot: &Shot, options: DrawOpti
     let mut app = app(settings, shot, options);
     let picture = render_app(&mut app, shot).expect("renders");
     write_png(&folder().join(format!("{name}.png")), &picture.rgba, picture.size).expect("png written");
-    println!("{name}: {}", report_json(&picture.figures, &picture.adapter));
+    let report = report_json(&picture.figures, &picture.adapter);
+    println!("{name}: {report}");
+    // The report carries the figures a user compares views by.
+    let pixels = f64::from(picture.size.0) * f64::from(picture.size.1);
+    let per_pixel = report["triangles_per_pixel"].as_f64().expect("triangles per pixel");
+    assert!((per_pixel - picture.figures.frame.triangles as f64 / pixels).abs() < 1e-9, "{report}");
+    if cfg!(target_os = "linux") {
+        assert!(report["peak_rss_bytes"].as_u64().is_some_and(|bytes| bytes > 1 << 20), "{report}");
+    }
     picture
 }
 
