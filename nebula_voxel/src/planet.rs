@@ -447,12 +447,41 @@ impl ProceduralPlanet {
             let within = |q: i64| (0..padded).contains(&q);
             (within(qi) && within(qj)).then(|| heights[(qj * padded + qi) as usize])
         };
+        // The padding ring and the rows next to it are the same LOD's
+        // columns of the neighbouring chunks: copied when those are cached
+        // (same face only, as for the parent).
+        let neighbours: Vec<(ChunkColumn, Arc<[Column]>)> =
+            [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+                .into_iter()
+                .filter_map(|(dx, dy): (i64, i64)| {
+                    let (x, y) = (i64::from(column.x) + dx, i64::from(column.y) + dy);
+                    let chunks = i64::from(self.layout.chunks_per_edge(column.lod));
+                    if !(0..chunks).contains(&x) || !(0..chunks).contains(&y) {
+                        return None;
+                    }
+                    let neighbour = ChunkColumn { face: column.face, lod: column.lod, x: x as u32, y: y as u32 };
+                    self.heights.get(neighbour).map(|heights| (neighbour, heights))
+                })
+                .collect();
+        let from_neighbour = |i: i64, j: i64| {
+            let inside = |c: i64| (0..per_edge).contains(&c);
+            if !inside(i) || !inside(j) {
+                return None;
+            }
+            neighbours.iter().find_map(|(neighbour, heights)| {
+                let (qi, qj) = (i - (i64::from(neighbour.x) * size - 1), j - (i64::from(neighbour.y) * size - 1));
+                let within = |q: i64| (0..padded).contains(&q);
+                (within(qi) && within(qj)).then(|| heights[(qj * padded + qi) as usize])
+            })
+        };
         let mut heights = vec![Column { height: f64::NAN, surface: Voxel::AIR }; (padded * padded) as usize];
         let mut missing = Vec::with_capacity(heights.len());
         let mut directions = Vec::with_capacity(heights.len());
         for (n, height) in (0..padded * padded).zip(&mut heights) {
             let (i, j) = (base_i + n % padded, base_j + n / padded);
-            if let Some(known) = from_parent(i, j) {
+            let edge_rows = |c: i64| c < 2 || c >= padded - 2;
+            let near_edge = edge_rows(n % padded) || edge_rows(n / padded);
+            if let Some(known) = from_parent(i, j).or_else(|| near_edge.then(|| from_neighbour(i, j)).flatten()) {
                 *height = known;
             } else {
                 missing.push(n as usize);

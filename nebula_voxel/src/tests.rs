@@ -329,6 +329,39 @@ fn columns_after_their_parent_give_the_same_voxels() {
     assert!(checked >= 96, "only {checked} chunks checked");
 }
 
+/// Columns filled after some of their neighbours (whose cached heights
+/// they copy for their padding ring and edge rows) hold the voxels of a
+/// cold fill, at face edges and corners too.
+#[test]
+fn columns_after_their_neighbours_give_the_same_voxels() {
+    let mut checked = 0;
+    for settings in [PlanetSettings::earth(5), PlanetSettings::small(5)] {
+        let warm = ProceduralPlanet::new(settings).unwrap();
+        // LODs with at least 2×2 columns per face.
+        for (n, lod) in [0u8, 2, 4].into_iter().enumerate() {
+            let per_edge = warm.layout().chunks_per_edge(lod);
+            assert!(per_edge >= 2);
+            let face = CubeFace::ALL[n * 2 + 1];
+            for (x, y) in [(0, 0), (per_edge - 2, 1), (per_edge / 2, per_edge - 2), (per_edge / 3, per_edge / 3)] {
+                // A 2×2 block of columns in order: each later one finds
+                // one to three of its neighbours cached.
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let column = ChunkColumn { face, lod, x: x + dx, y: y + dy };
+                    for layer in warm.surface_chunk_layers(column).unwrap() {
+                        let key = column.chunk(layer);
+                        let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
+                        warm.fill_chunk(key, &mut cached).unwrap();
+                        warm.clone().fill_chunk(key, &mut cold).unwrap();
+                        assert!(cached == cold, "{key:?}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked >= 48, "only {checked} chunks checked");
+}
+
 fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }
