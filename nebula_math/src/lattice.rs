@@ -182,11 +182,26 @@ impl Cubesphere {
     /// [`Cubesphere::position`].
     #[must_use]
     pub fn direction(&self, face: CubeFace, i: f64, j: f64) -> DVec3 {
+        self.direction_warped(face, self.warp(i), self.warp(j))
+    }
+
+    /// In-face coordinate `c` (an `i` or a `j`) warped by the sphere map,
+    /// for [`Cubesphere::direction_warped`]: a grid of directions costs one
+    /// warp (a `tan`) per row and per column instead of two per point.
+    #[must_use]
+    pub fn warp(&self, c: f64) -> f64 {
         let half = f64::from(self.resolution / 2);
-        let t = face.normal().as_dvec3()
-            + face.u_axis().as_dvec3() * ((i - half) / half)
-            + face.v_axis().as_dvec3() * ((j - half) / half);
-        self.map.direction(t)
+        self.map.warp((c - half) / half)
+    }
+
+    /// [`Cubesphere::direction`] from warped coordinates
+    /// ([`Cubesphere::warp`] of `i` and of `j`), bit for bit: the face's
+    /// normal component is ±1 and the map is odd, so warping the cube point
+    /// componentwise is warping `i` and `j`.
+    #[must_use]
+    pub fn direction_warped(&self, face: CubeFace, warped_i: f64, warped_j: f64) -> DVec3 {
+        (face.normal().as_dvec3() + face.u_axis().as_dvec3() * warped_i + face.v_axis().as_dvec3() * warped_j)
+            .normalize()
     }
 
     /// The face and fractional in-face coordinates `(i, j)` whose

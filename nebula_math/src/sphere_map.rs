@@ -43,9 +43,17 @@ impl SphereMap {
     /// give bit-identical directions.
     #[must_use]
     pub fn direction(self, t: DVec3) -> DVec3 {
+        DVec3::new(self.warp(t.x), self.warp(t.y), self.warp(t.z)).normalize()
+    }
+
+    /// One cube coordinate (in `[−1, 1]`) as this map warps it before
+    /// normalising: itself for gnomonic, `tan(t·π/4)` for equi-angular.
+    /// Odd, so `warp(−t)` is `−warp(t)` bit for bit.
+    #[must_use]
+    pub fn warp(self, t: f64) -> f64 {
         match self {
-            SphereMap::Gnomonic => t.normalize(),
-            SphereMap::EquiAngular => DVec3::new(equi_angular(t.x), equi_angular(t.y), equi_angular(t.z)).normalize(),
+            SphereMap::Gnomonic => t,
+            SphereMap::EquiAngular => equi_angular(t),
         }
     }
 }

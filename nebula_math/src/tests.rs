@@ -203,6 +203,31 @@ fn any_edge() -> impl Strategy<Value = FaceEdge> {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
 
+    /// A direction from warped coordinates is the direction of the cube
+    /// point warped componentwise (the map's definition), bit for bit, for
+    /// both maps, at lattice points, cell centres and anywhere between.
+    #[test]
+    fn warped_directions_are_the_cube_point_warped(
+        face in any_face(), log_n in 1u32..24, a in 0.0f64..=1.0, b in 0.0f64..=1.0, snap in 0usize..3,
+        equi_angular in any::<bool>(),
+    ) {
+        let n = 1u32 << log_n;
+        let map = if equi_angular { SphereMap::EquiAngular } else { SphereMap::Gnomonic };
+        let sphere = Cubesphere::new(6_371_000.0, n, 1.0, map).unwrap();
+        let coord = |f: f64| match snap {
+            0 => (f * f64::from(n)).floor(),
+            1 => (f * f64::from(n)).floor() + 0.5,
+            _ => f * f64::from(n),
+        };
+        let (i, j) = (coord(a), coord(b));
+        let half = f64::from(n / 2);
+        let t = face.normal().as_dvec3() + face.u_axis().as_dvec3() * ((i - half) / half) + face.v_axis().as_dvec3() * ((j - half) / half);
+        let expected = map.direction(t);
+        prop_assert_eq!(sphere.direction(face, i, j).to_array().map(f64::to_bits), expected.to_array().map(f64::to_bits));
+        let warped = sphere.direction_warped(face, sphere.warp(i), sphere.warp(j));
+        prop_assert_eq!(warped.to_array().map(f64::to_bits), expected.to_array().map(f64::to_bits));
+    }
+
     /// A lattice point on a face edge gives the bit-identical position from
     /// both faces, at any resolution and layer.
     #[test]

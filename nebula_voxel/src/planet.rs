@@ -474,6 +474,16 @@ impl ProceduralPlanet {
                 (within(qi) && within(qj)).then(|| heights[(qj * padded + qi) as usize])
             })
         };
+        // Columns on this face: their directions from one warp per row and
+        // per column of the chunk (bit-identical to `column_direction`).
+        let sphere = self.layout.sphere();
+        let span = self.layout.voxel_span(column.lod) as f64;
+        let warped = |base: i64| -> Vec<Option<f64>> {
+            (base..base + padded)
+                .map(|c| (0..per_edge).contains(&c).then(|| sphere.warp((c as f64 + 1.0) * span - 0.5)))
+                .collect()
+        };
+        let (warped_i, warped_j) = (warped(base_i), warped(base_j));
         let mut heights = vec![Column { height: f64::NAN, surface: Voxel::AIR }; (padded * padded) as usize];
         let mut missing = Vec::with_capacity(heights.len());
         let mut directions = Vec::with_capacity(heights.len());
@@ -485,7 +495,10 @@ impl ProceduralPlanet {
                 *height = known;
             } else {
                 missing.push(n as usize);
-                directions.push(self.column_direction(column.face, column.lod, i, j));
+                directions.push(match (warped_i[(n % padded) as usize], warped_j[(n / padded) as usize]) {
+                    (Some(wi), Some(wj)) => sphere.direction_warped(column.face, wi, wj),
+                    _ => self.column_direction(column.face, column.lod, i, j),
+                });
             }
         }
         let mut computed = vec![0.0; directions.len()];
