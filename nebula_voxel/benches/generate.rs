@@ -15,6 +15,8 @@
 //! SSE2 register): 0.70 / 0.85 ms. Four lanes (`f64x4`, two SSE2 halves
 //! on baseline x86-64) were slower: 0.99 ms where all four share a cell,
 //! 1.81 ms gathering each lane's gradients.
+//! Column directions from one `tan` per row and per column of the chunk:
+//! 0.67 / 0.82 ms.
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkVoxels, CubeFace, PlanetSettings, ProceduralPlanet, VoxelSource};
