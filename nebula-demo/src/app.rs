@@ -47,6 +47,8 @@ pub struct PlanetApp {
     /// The ECS world.
     pub world: World,
     schedule: Schedule,
+    /// Unit world direction towards the sun.
+    sun: DVec3,
 }
 
 /// Uploads a finished chunk mesh into the GPU arena.
@@ -84,7 +86,7 @@ impl PlanetApp {
         world.insert_resource(GpuRes(gpu));
         let mut schedule = Schedule::default();
         schedule.add_systems(stream_system);
-        Ok(Self { world, schedule })
+        Ok(Self { world, schedule, sun: crate::sun::default_sun() })
     }
 
     /// The streamer.
@@ -161,6 +163,27 @@ impl PlanetApp {
         self.streamer().jobs_in_flight()
     }
 
+    /// The unit world direction towards the sun.
+    #[must_use]
+    pub fn sun(&self) -> DVec3 {
+        self.sun
+    }
+
+    /// Moves the sun to unit world direction `towards` (see
+    /// [`crate::sun::sun_direction`] to place it over a view).
+    ///
+    /// # Errors
+    /// [`crate::sun::SunError::NonFinite`] for NaN or infinite input or a
+    /// zero vector; the sun stays where it was.
+    pub fn set_sun(&mut self, towards: DVec3) -> Result<(), crate::sun::SunError> {
+        let length = towards.length();
+        if !length.is_finite() || length == 0.0 {
+            return Err(crate::sun::SunError::NonFinite { name: "direction", value: length });
+        }
+        self.sun = towards / length;
+        Ok(())
+    }
+
     /// The per-frame constants of the shader for the current view.
     #[must_use]
     pub fn frame_draw(&self) -> FrameDraw {
@@ -192,6 +215,7 @@ impl PlanetApp {
             view: debug,
             morph: frame_draw.morph,
             max_lod,
+            sun: self.sun.as_vec3(),
             atmosphere: background
                 .is_none()
                 .then(|| nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius()),

@@ -268,6 +268,8 @@ pub fn fly(
     }
     app.keep_cpu_meshes(template.background.is_some());
     app.set_view(shot_view(&shot_at(0.0))?);
+    // The sun stays where the first pose places it.
+    crate::headless::place_sun(app, &shot_at(0.0))?;
     let first_frame_ms = prime(app)?;
     let count = (flight.duration() * fps).floor() as usize + 1;
     let mut frames = Vec::with_capacity(count);

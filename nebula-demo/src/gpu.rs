@@ -130,6 +130,8 @@ pub struct FrameParams {
     /// Draw the sky, sea and haze of a planet of this radius (metres) over
     /// the terrain; `None` leaves the background alone (crack checks).
     pub atmosphere: Option<f64>,
+    /// Unit direction towards the sun (world).
+    pub sun: Vec3,
 }
 
 /// Device, queue, pipeline and the per-chunk uniform ring.
@@ -422,7 +424,7 @@ impl Gpu {
         // shader forms vertex − eye from high and low f32 parts of both
         // (`nebula_meshing::RenderVertex`), the same in every chunk.
         let view_proj = view_projection(frame.forward, frame.up, frame.fov_y_degrees, aspect);
-        let sun = Vec3::new(0.4, 0.8, 0.45).normalize();
+        let sun = frame.sun;
         let (eye_high, eye_low) = split_high_low(frame.eye);
         // The sky pass only in the shaded view: debug colours stay plain.
         let sky = frame.atmosphere.filter(|_| frame.view == DebugView::Shaded);

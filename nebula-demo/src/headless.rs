@@ -35,6 +35,10 @@ pub struct Shot {
     pub frames: u32,
     /// Debug view.
     pub view: DebugView,
+    /// Sun elevation and azimuth in degrees over the horizon at
+    /// `position`, azimuth from the view direction (see
+    /// [`crate::sun::sun_direction`]); `None` keeps the app's sun.
+    pub sun: Option<(f64, f64)>,
 }
 
 impl Shot {
@@ -63,6 +67,7 @@ impl Shot {
             sse_px: 1.0,
             frames: 4,
             view: DebugView::Shaded,
+            sun: None,
         }
     }
 }
@@ -131,6 +136,18 @@ pub const MAX_FIRST_FRAME_LEVELS: u8 = 3;
 pub fn headless_gpu() -> Result<Gpu, GpuError> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
     Gpu::new(&instance, None)
+}
+
+/// Puts `app`'s sun where `shot` asks ([`Shot::sun`], over the horizon at
+/// its camera); nothing when it asks for none.
+///
+/// # Errors
+/// [`crate::sun::SunError`] for a bad elevation, azimuth or camera.
+pub fn place_sun(app: &mut PlanetApp, shot: &Shot) -> Result<(), crate::sun::SunError> {
+    if let Some((elevation, azimuth)) = shot.sun {
+        app.set_sun(crate::sun::sun_direction(shot.position, shot.look_at - shot.position, elevation, azimuth)?)?;
+    }
+    Ok(())
 }
 
 /// Renders one shot of the planet.
@@ -215,6 +232,7 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     let view = shot_view(shot)?;
     app.gpu().check_image_size(shot.size)?;
     app.set_view(view);
+    place_sun(app, shot)?;
     let min_radius = app.min_surface_radius();
     anyhow::ensure!(
         shot.position.length() > min_radius,

@@ -32,6 +32,7 @@ pub mod flight;
 pub mod gpu;
 pub mod headless;
 pub mod hud;
+pub mod sun;
 
 use nebula_voxel::PlanetSettings;
 

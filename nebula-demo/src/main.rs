@@ -62,6 +62,11 @@ struct Args {
     /// Image or window size.
     #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "1280x720")]
     size: (u32, u32),
+    /// The sun, degrees: elevation over the horizon at the camera, then
+    /// azimuth clockwise from the view direction (0 ahead, 90 right); in the
+    /// window [ and ] lower and raise it [default: a sun fixed in the world].
+    #[arg(long, value_name = "ELEVATION,AZIMUTH", value_parser = parse_sun, allow_hyphen_values = true)]
+    sun: Option<(f64, f64)>,
     /// Clear colour (0–255 each); when given, nothing is drawn over it and
     /// crack pixels are counted.
     #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
@@ -215,6 +220,18 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+fn parse_sun(text: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = text.split(',').collect();
+    let [elevation, azimuth] = parts.as_slice() else {
+        return Err(format!("expected ELEVATION,AZIMUTH in degrees, got {text:?}"));
+    };
+    let number = |s: &str| s.trim().parse::<f64>().map_err(|e| format!("{s:?}: {e}"));
+    let (elevation, azimuth) = (number(elevation)?, number(azimuth)?);
+    // The same checks as placing it, with a harmless view.
+    nebula_demo::sun::sun_direction(DVec3::X, DVec3::Y, elevation, azimuth).map_err(|e| e.to_string())?;
+    Ok((elevation, azimuth))
+}
+
 fn parse_rgb(text: &str) -> Result<[u8; 3], String> {
     let parts: Vec<u8> = text
         .split(',')
@@ -294,6 +311,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         sse_px: args.sse,
         frames: args.frames,
         view: args.view,
+        sun: args.sun,
     };
     shot_view(&shot)?;
     if let Some(path) = &args.flight {
@@ -680,6 +698,7 @@ impl ApplicationHandler for Windowed {
             let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
             surface.configure(&gpu.device, &config);
             let mut app = PlanetApp::with_voxels(planet, self.shot.lod_settings(), gpu, shot_view(&self.shot)?)?;
+            nebula_demo::headless::place_sun(&mut app, &self.shot)?;
             app.set_draw_options(self.options);
             let hud = Hud::new(app.gpu(), (config.width, config.height), config.format)?;
             Ok(WindowState { window, surface, config, app, hud })
@@ -727,6 +746,15 @@ impl ApplicationHandler for Windowed {
                                     Some(Walker { step_up: voxel * 1.02, ..Walker::new(self.eye - up * 1.6) })
                                 }
                             };
+                        }
+                        KeyCode::BracketLeft | KeyCode::BracketRight => {
+                            // Lower or raise the sun 5° over the camera's horizon.
+                            let degrees = if code == KeyCode::BracketRight { 5.0 } else { -5.0 };
+                            if let Some(state) = self.state.as_mut() {
+                                let sun = nebula_demo::sun::raise_sun(state.app.sun(), self.eye, degrees);
+                                // A unit vector from a unit vector: never refused.
+                                let _ = state.app.set_sun(sun);
+                            }
                         }
                         KeyCode::KeyH => {
                             if let Some(state) = self.state.as_mut() {

@@ -221,3 +221,20 @@ fn an_image_too_large_for_the_gpu_is_refused_with_the_limit_named() {
         println!("--size {size}: {}", stderr.trim());
     }
 }
+
+/// A sun below the nadir, past the zenith or not a number is refused by
+/// the argument parser with the reason, before any work.
+#[test]
+fn a_sun_out_of_range_is_refused() {
+    for (sun, reason) in [
+        ("95,0", "outside -90..=90"),
+        ("-91,10", "outside -90..=90"),
+        ("NaN,0", "not finite"),
+        ("10", "ELEVATION,AZIMUTH"),
+    ] {
+        let output = run(&strings(&["--headless", "--sun", sun, "--radius", "2000", "--voxel-size", "1.5"]));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "--sun {sun} was accepted");
+        assert!(stderr.contains(reason), "--sun {sun}: {stderr}");
+    }
+}

@@ -660,3 +660,30 @@ fn the_sky_is_drawn_only_without_a_background() {
     assert!(sky.iter().all(|p| *p != nebula_demo::app::SPACE && p[2] > p[0] + 40), "no blue sky: {:?}", &sky[..4]);
     println!("sky at the top: {:?}", sky[width as usize / 2]);
 }
+
+/// The sun placed over a view (`Shot::sun`) lights the sky: low on the
+/// horizon it turns the sky above the horizon towards orange, high it is
+/// blue. (Same Earth view as above, the sun off to the side.)
+#[test]
+fn a_low_sun_turns_the_sky_orange() {
+    if !adapter_or_skip("sun") {
+        return;
+    }
+    let settings = earth();
+    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
+    let (eye, look) = pose(&settings, dir, 1_000.0, dir.cross(DVec3::Z), 5.0);
+    let (width, height) = SIZE;
+    // Mean red minus blue over the top quarter of the picture (sky).
+    let warmth = |elevation: f64| -> f64 {
+        let shot = Shot { background: None, sun: Some((elevation, 120.0)), ..shot(eye, look, 60.0) };
+        let picture = settled(&format!("sun-{elevation}"), &settings, &shot, DrawOptions::default());
+        let rows = (height / 4) as usize;
+        let pixels = (0..rows).flat_map(|y| (0..width as usize).map(move |x| (y * width as usize + x) * 4));
+        let sum: f64 = pixels.map(|i| f64::from(picture.rgba[i]) - f64::from(picture.rgba[i + 2])).sum();
+        sum / (rows * width as usize) as f64
+    };
+    let (low, high) = (warmth(2.0), warmth(60.0));
+    println!("sky red − blue: sun at 2°: {low:.1}, at 60°: {high:.1}");
+    assert!(high < -40.0, "a high sun should give a blue sky: {high:.1}");
+    assert!(low > high + 30.0, "a low sun should warm the sky: {low:.1} vs {high:.1}");
+}
