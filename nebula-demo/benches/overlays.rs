@@ -1,0 +1,78 @@
+//! What the looks cost per frame, in one run on the same settled view (the
+//! small planet from 2.6 radii, 640×400), each drawn and waited for:
+//! - `terrain_only`: the frame over a `--background` (no sky, sea or haze);
+//! - `terrain_and_sky`: the same frame with the sky pass (sky, sea, haze);
+//! - `hud`: the HUD's seven lines drawn over it, alone;
+//! - `empty_submit`: an empty command buffer and the wait, the floor the
+//!   others stand on.
+//!
+//! Run: `cargo bench -p nebula-demo`. Without a GPU adapter it says so and
+//! measures nothing.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nebula_demo::app::PlanetApp;
+use nebula_demo::gpu::{DebugView, Offscreen};
+use nebula_demo::headless::{Shot, headless_gpu, render_app, shot_view};
+use nebula_demo::hud::Hud;
+use nebula_math::DVec3;
+use nebula_voxel::{PlanetSettings, ProceduralPlanet};
+
+const SIZE: (u32, u32) = (640, 400);
+
+fn wait(app: &PlanetApp) {
+    let _ = app.gpu().device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None });
+}
+
+fn overlays(c: &mut Criterion) {
+    let gpu = match headless_gpu() {
+        Ok(gpu) => gpu,
+        Err(error) => {
+            eprintln!("SKIPPED: no GPU adapter ({error}); nothing measured");
+            return;
+        }
+    };
+    let settings = PlanetSettings::small(7);
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let eye = DVec3::new(0.35, 0.55, 0.76).normalize() * settings.radius * 2.6;
+    let shot = Shot { background: None, ..Shot::looking_at(eye, DVec3::ZERO, SIZE) };
+    let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, shot_view(&shot).expect("view")).expect("app");
+    render_app(&mut app, &shot).expect("settles");
+    let target = Offscreen::new(app.gpu(), SIZE).expect("target");
+    let mut hud = Hud::new(app.gpu(), SIZE, app.gpu().color_format).expect("HUD");
+    hud.set_text(
+        "16.4 ms/frame\n5266 chunks, 948367 triangles\n0 meshing jobs\nLOD 3 to 18\naltitude 4200 m, 0 m/s\n\
+         PosX 123 456 789 at 12.3 m\nplaces stone (M), H hides this"
+            .to_owned(),
+    );
+    let mut group = c.benchmark_group("overlays_640x400");
+    group.sample_size(20);
+    group.bench_function("terrain_only", |b| {
+        b.iter(|| {
+            app.draw(&target.view, SIZE, Some([0, 0, 0]), DebugView::Shaded);
+            wait(&app);
+        });
+    });
+    group.bench_function("terrain_and_sky", |b| {
+        b.iter(|| {
+            app.draw(&target.view, SIZE, None, DebugView::Shaded);
+            wait(&app);
+        });
+    });
+    group.bench_function("hud", |b| {
+        b.iter(|| {
+            hud.draw(app.gpu(), &target.view).expect("HUD drawn");
+            wait(&app);
+        });
+    });
+    group.bench_function("empty_submit", |b| {
+        b.iter(|| {
+            let encoder = app.gpu().device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+            app.gpu().queue.submit([encoder.finish()]);
+            wait(&app);
+        });
+    });
+    group.finish();
+}
+
+criterion_group!(benches, overlays);
+criterion_main!(benches);
