@@ -89,7 +89,7 @@ pub enum DebugView {
 pub struct GpuMesh {
     /// Where its vertices and indices live (`None`: empty, never drawn).
     slot: Option<Slot>,
-    surface_indices: usize,
+    surface_side_ranges: [std::ops::Range<usize>; 6],
     skirt_ranges: [std::ops::Range<usize>; 4],
     /// The chunk's LOD.
     pub lod: u8,
@@ -401,7 +401,7 @@ impl Gpu {
         let slot = self.arena.upload(&self.device, &self.queue, &mesh.vertices, &mesh.indices);
         GpuMesh {
             slot,
-            surface_indices: mesh.surface_indices,
+            surface_side_ranges: mesh.surface_side_ranges.clone(),
             skirt_ranges: mesh.skirt_ranges.clone(),
             lod,
             id: key_id % 4096,
@@ -513,8 +513,9 @@ impl Gpu {
             let mut bound = None;
             for (n, (mesh, draw)) in meshes.iter().enumerate() {
                 let Some(slot) = &mesh.slot else { continue };
-                // The surface and only the skirts lowered this frame.
-                let ranges = drawn_ranges(mesh.surface_indices, &mesh.skirt_ranges, draw);
+                // The surface but the sides looking away, and only the
+                // skirts lowered this frame.
+                let ranges = drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, draw);
                 if ranges.iter().all(std::ops::Range::is_empty) {
                     continue;
                 }

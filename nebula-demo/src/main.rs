@@ -369,7 +369,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
 }
 
 fn draw_options(args: &Args) -> DrawOptions {
-    DrawOptions { skirts: !args.no_skirts, morph: args.morph.into() }
+    DrawOptions { skirts: !args.no_skirts, morph: args.morph.into(), ..DrawOptions::default() }
 }
 
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {

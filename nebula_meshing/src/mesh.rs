@@ -105,6 +105,9 @@ pub struct ChunkMesh {
     pub(crate) indices: Vec<u32>,
     /// `indices[..surface_index_count]` are the surface triangles.
     pub(crate) surface_index_count: usize,
+    /// The surface triangles of the faces looking towards each side (index
+    /// `FaceDirection as usize`), consecutive ranges of `indices`.
+    pub(crate) surface_side_ranges: [std::ops::Range<usize>; 6],
     pub(crate) skirt_triangles: usize,
     /// Depth of the skirt generated on each horizontal side (index as in
     /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none.
@@ -126,6 +129,7 @@ impl ChunkMesh {
             sources: Vec::new(),
             indices: Vec::new(),
             surface_index_count: 0,
+            surface_side_ranges: [0..0, 0..0, 0..0, 0..0, 0..0, 0..0],
             skirt_triangles: 0,
             skirt_depths: [0.0; 4],
             skirt_ranges: [0..0, 0..0, 0..0, 0..0],
@@ -140,6 +144,15 @@ impl ChunkMesh {
     #[must_use]
     pub fn skirt_index_ranges(&self) -> [std::ops::Range<usize>; 4] {
         self.skirt_ranges.clone()
+    }
+
+    /// The range of [`ChunkMesh::indices`] holding the surface triangles of
+    /// the faces looking towards each side (index `FaceDirection as usize`):
+    /// a renderer can leave out the sides whose faces all look away from
+    /// the eye (see `ChunkDraw::hidden_sides`).
+    #[must_use]
+    pub fn surface_side_ranges(&self) -> [std::ops::Range<usize>; 6] {
+        self.surface_side_ranges.clone()
     }
 
     /// The depth each side's skirt was generated with (index as in

@@ -219,6 +219,7 @@ impl ChunkMesher {
         let mut result = Ok(());
         'faces: for (group, face) in groups.iter().zip(faces) {
             let normal = face.signed_normal().to_array();
+            let first = mesh.indices.len();
             for quad in group {
                 let corners = face.quad_corners(quad).map(|c| c.to_array().map(|v| v as i32 - 1));
                 let material = voxels.get(quad.minimum).map_or(0, |v| v.material());
@@ -227,6 +228,7 @@ impl ChunkMesher {
                     break 'faces;
                 }
             }
+            mesh.surface_side_ranges[side_of(normal) as usize] = first..mesh.indices.len();
         }
         self.greedy.quads.groups = groups;
         mesh.surface_index_count = mesh.indices.len();

@@ -145,6 +145,11 @@ pub struct ChunkDraw {
     /// Skirt depth per horizontal side (index as in
     /// [`FaceDirection::HORIZONTAL`]), metres.
     pub skirt_depths: [f32; 4],
+    /// Bit `FaceDirection as usize` set: every surface face looking towards
+    /// that side looks away from the eye, so its triangles are left out
+    /// ([`drawn_ranges`]); drawn, they would be back faces, always behind
+    /// the front of the closed surface.
+    pub hidden_sides: u8,
 }
 
 impl RenderVertex {
@@ -208,6 +213,10 @@ pub struct RenderMesh {
     pub indices: Vec<u32>,
     /// `indices[..surface_indices]` is the surface.
     pub surface_indices: usize,
+    /// The surface triangles looking towards each side (index
+    /// `FaceDirection as usize`), consecutive ranges covering
+    /// `..surface_indices`.
+    pub surface_side_ranges: [std::ops::Range<usize>; 6],
     /// Index range of each side's skirt (as in `FaceDirection::HORIZONTAL`).
     pub skirt_ranges: [std::ops::Range<usize>; 4],
 }
@@ -223,30 +232,33 @@ impl RenderMesh {
     /// the sides lowered.
     #[must_use]
     pub fn drawn_ranges(&self, draw: &ChunkDraw) -> Vec<std::ops::Range<usize>> {
-        drawn_ranges(self.surface_indices, &self.skirt_ranges, draw)
+        drawn_ranges(&self.surface_side_ranges, &self.skirt_ranges, draw)
     }
 
-    /// Triangles of the surface, and of each side's skirt.
+    /// Triangles of the surface looking towards each side (index
+    /// `FaceDirection as usize`), and of each side's skirt.
     #[must_use]
-    pub fn triangle_counts(&self) -> (usize, [usize; 4]) {
-        (self.surface_indices / 3, self.skirt_ranges.clone().map(|r| r.len() / 3))
+    pub fn triangle_counts(&self) -> ([usize; 6], [usize; 4]) {
+        (self.surface_side_ranges.clone().map(|r| r.len() / 3), self.skirt_ranges.clone().map(|r| r.len() / 3))
     }
 }
 
-/// The surface range and the skirt ranges of the sides `draw` lowers,
-/// adjacent ranges merged.
+/// The surface ranges of the sides `draw` does not hide and the skirt
+/// ranges of the sides it lowers, in index order, adjacent ranges merged.
 #[must_use]
 pub fn drawn_ranges(
-    surface: usize,
+    surface: &[std::ops::Range<usize>; 6],
     skirts: &[std::ops::Range<usize>; 4],
     draw: &ChunkDraw,
 ) -> Vec<std::ops::Range<usize>> {
-    let mut ranges = Vec::with_capacity(5);
-    ranges.push(0..surface);
-    for (range, depth) in skirts.iter().zip(draw.skirt_depths) {
-        if depth <= 0.0 || range.is_empty() {
-            continue;
-        }
+    let shown_surface =
+        surface.iter().enumerate().filter(|(side, _)| draw.hidden_sides & (1 << side) == 0).map(|(_, r)| r);
+    let lowered_skirts = skirts.iter().zip(draw.skirt_depths).filter(|(_, depth)| *depth > 0.0).map(|(r, _)| r);
+    let mut parts: Vec<&std::ops::Range<usize>> =
+        shown_surface.chain(lowered_skirts).filter(|r| !r.is_empty()).collect();
+    parts.sort_unstable_by_key(|r| r.start);
+    let mut ranges: Vec<std::ops::Range<usize>> = Vec::with_capacity(parts.len());
+    for range in parts {
         match ranges.last_mut() {
             Some(last) if last.end == range.start => last.end = range.end,
             _ => ranges.push(range.clone()),
@@ -263,6 +275,7 @@ impl ChunkMesh {
             vertices: self.render_vertices(),
             indices: self.indices().to_vec(),
             surface_indices: self.surface_triangle_count() * 3,
+            surface_side_ranges: self.surface_side_ranges(),
             skirt_ranges: self.skirt_index_ranges(),
         }
     }
@@ -295,7 +308,7 @@ impl ChunkMesh {
     /// with `parent_error`.
     #[must_use]
     pub fn chunk_draw(&self, parent_error: f64) -> ChunkDraw {
-        ChunkDraw { parent_error, skirt_depths: self.skirt_depths }
+        ChunkDraw { parent_error, skirt_depths: self.skirt_depths, hidden_sides: 0 }
     }
 }
 

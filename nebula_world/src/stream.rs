@@ -98,11 +98,15 @@ pub struct DrawOptions {
     pub skirts: bool,
     /// What drives μ.
     pub morph: MorphRule,
+    /// Leave out a chunk's side walls when they all look away from the eye
+    /// (`ChunkDraw::hidden_sides`): back faces, never seen, about a tenth
+    /// of the triangles.
+    pub cull_back_sides: bool,
 }
 
 impl Default for DrawOptions {
     fn default() -> Self {
-        Self { skirts: true, morph: MorphRule::Parent }
+        Self { skirts: true, morph: MorphRule::Parent, cull_back_sides: true }
     }
 }
 
@@ -110,8 +114,9 @@ impl Default for DrawOptions {
 pub struct LoadedChunk<H> {
     /// The renderer's handle.
     pub handle: H,
-    /// Surface triangles.
-    pub surface_triangles: usize,
+    /// Surface triangles looking towards each side (index
+    /// `FaceDirection as usize`).
+    pub surface_triangles: [usize; 6],
     /// Skirt triangles per side (as in `FaceDirection::HORIZONTAL`).
     pub skirt_triangles: [usize; 4],
     /// The mesh on the CPU, when the streamer keeps them
@@ -599,7 +604,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             figures.chunks += 1;
             let skirts: usize =
                 chunk.skirt_triangles.iter().zip(draw.skirt_depths).filter(|(_, d)| *d > 0.0).map(|(n, _)| n).sum();
-            figures.triangles += chunk.surface_triangles + skirts;
+            let shown = |(side, n): (usize, &usize)| if draw.hidden_sides & (1 << side) == 0 { *n } else { 0 };
+            figures.triangles += chunk.surface_triangles.iter().enumerate().map(shown).sum::<usize>() + skirts;
             figures.skirt_triangles += skirts;
             figures.skirt_triangles_held += chunk.skirt_triangles.iter().sum::<usize>();
             figures.lod_histogram[usize::from(key.lod)] += 1;
@@ -809,7 +815,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
-                (column, chunk_draw(voxels, column, &set, options))
+                (column, chunk_draw(voxels, column, &set, options, eye))
             })
             .collect();
         self.draw.holes = holes;
@@ -956,6 +962,7 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
     column: ChunkColumn,
     drawn: &HashSet<ChunkColumn>,
     options: DrawOptions,
+    eye: nebula_math::DVec3,
 ) -> ChunkDraw {
     let layout = voxels.layout();
     let max_lod = layout.max_lod();
@@ -963,9 +970,10 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
         MorphRule::Own => voxels.geometric_error(column.lod),
         _ => layout.merge_error(column.lod),
     };
+    let hidden_sides = if options.cull_back_sides { back_sides(layout, column, eye) } else { 0 };
     let mut skirt_depths = [0.0f32; 4];
     if !options.skirts {
-        return ChunkDraw { parent_error, skirt_depths };
+        return ChunkDraw { parent_error, skirt_depths, hidden_sides };
     }
     for (depth, side) in skirt_depths.iter_mut().zip(FaceDirection::HORIZONTAL) {
         let Some(edge) = side.face_edge() else { continue };
@@ -987,7 +995,35 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
         }
         *depth = skirt_depth(voxels, column.lod, other) as f32;
     }
-    ChunkDraw { parent_error, skirt_depths }
+    ChunkDraw { parent_error, skirt_depths, hidden_sides }
+}
+
+/// The horizontal sides of `column` whose wall faces all look away from
+/// `eye` (bit `FaceDirection as usize`). A wall looking towards +i lies in
+/// the plane through the planet centre of its lattice line `i = c` and
+/// faces the eye only when the eye is on that plane's +i side; the column's
+/// walls lie in the planes from its first to its last line, a pencil about
+/// one axis, so the eye is behind all of them when it is behind the two
+/// outermost (by more than a millimetre, so rounding never hides a wall
+/// seen edge-on).
+fn back_sides(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn, eye: nebula_math::DVec3) -> u8 {
+    const MARGIN_M: f64 = 1e-3;
+    let sphere = layout.sphere();
+    let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
+    let mut hidden = 0;
+    for (along_u, first, positive, negative) in [
+        (true, i64::from(column.x) * size, FaceDirection::PosX, FaceDirection::NegX),
+        (false, i64::from(column.y) * size, FaceDirection::PosZ, FaceDirection::NegZ),
+    ] {
+        let sides = [first, first + size].map(|c| eye.dot(sphere.lattice_plane_normal(column.face, along_u, c)));
+        if sides.iter().all(|&d| d < -MARGIN_M) {
+            hidden |= 1 << positive as u8;
+        }
+        if sides.iter().all(|&d| d > MARGIN_M) {
+            hidden |= 1 << negative as u8;
+        }
+    }
+    hidden
 }
 
 /// Why a [`Streamer`] could not start or take new voxels.

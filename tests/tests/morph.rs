@@ -43,8 +43,10 @@ fn meshes(planet: &ProceduralPlanet, column: ChunkColumn) -> Vec<ChunkMesh> {
 fn pop_px(planet: &ProceduralPlanet, case: &Case, eye: DVec3, k: f64, morph: bool) -> f64 {
     let layout = planet.layout();
     let frame = FrameDraw::new(eye, k, 1.0, morph);
-    let child_draw = ChunkDraw { parent_error: layout.merge_error(case.parent.lod - 1), skirt_depths: [0.0; 4] };
-    let parent_draw = ChunkDraw { parent_error: layout.merge_error(case.parent.lod), skirt_depths: [0.0; 4] };
+    let child_draw =
+        ChunkDraw { parent_error: layout.merge_error(case.parent.lod - 1), skirt_depths: [0.0; 4], hidden_sides: 0 };
+    let parent_draw =
+        ChunkDraw { parent_error: layout.merge_error(case.parent.lod), skirt_depths: [0.0; 4], hidden_sides: 0 };
     let sphere = layout.sphere();
     let parent_span = layout.voxel_span(case.parent.lod);
     let mut worst = 0.0_f64;

@@ -687,3 +687,31 @@ fn a_low_sun_turns_the_sky_orange() {
     assert!(high < -40.0, "a high sun should give a blue sky: {high:.1}");
     assert!(low > high + 30.0, "a low sun should warm the sky: {low:.1} vs {high:.1}");
 }
+
+/// Leaving out the side walls that look away from the eye
+/// (`DrawOptions::cull_back_sides`) changes no pixel and draws fewer
+/// triangles: they are back faces of a closed surface. Earth, 300 m over
+/// the ground looking 20° down, and the small planet from orbit.
+#[test]
+fn culled_back_sides_change_no_pixel() {
+    if !adapter_or_skip("back sides") {
+        return;
+    }
+    let earth = earth();
+    let dir = DVec3::new(-0.4, 0.7, 0.6).normalize();
+    let (eye, look) = pose(&earth, dir, 300.0, dir.cross(DVec3::Y), 20.0);
+    let small = PlanetSettings::small(7);
+    let orbit = DVec3::new(0.35, 0.55, 0.76).normalize() * small.radius * 2.6;
+    for (name, settings, view) in
+        [("earth", &earth, shot(eye, look, 60.0)), ("small", &small, shot(orbit, DVec3::ZERO, 60.0))]
+    {
+        let all = DrawOptions { cull_back_sides: false, ..DrawOptions::default() };
+        let with_all = settled(&format!("sides-all-{name}"), settings, &view, all);
+        let culled = settled(&format!("sides-culled-{name}"), settings, &view, DrawOptions::default());
+        let (before, after) = (with_all.figures.frame.triangles, culled.figures.frame.triangles);
+        println!("{name}: {before} triangles with every side, {after} with the back sides left out");
+        assert!(with_all.rgba == culled.rgba, "{name}: culling changed the picture");
+        assert_eq!(culled.figures.crack_pixels, Some(0), "{name}");
+        assert!((after as f64) < 0.97 * before as f64, "{name}: culling saved too little to tell: {before} → {after}");
+    }
+}
