@@ -211,11 +211,9 @@ pub struct RenderMesh {
     pub vertices: Vec<RenderVertex>,
     /// Triangle list: the surface, then each side's skirt.
     pub indices: Vec<u32>,
-    /// `indices[..surface_indices]` is the surface.
-    pub surface_indices: usize,
     /// The surface triangles looking towards each side (index
-    /// `FaceDirection as usize`), consecutive ranges covering
-    /// `..surface_indices`.
+    /// `FaceDirection as usize`): consecutive ranges that together are the
+    /// start of `indices`, before the skirts.
     pub surface_side_ranges: [std::ops::Range<usize>; 6],
     /// Index range of each side's skirt (as in `FaceDirection::HORIZONTAL`).
     pub skirt_ranges: [std::ops::Range<usize>; 4],
@@ -274,7 +272,6 @@ impl ChunkMesh {
         RenderMesh {
             vertices: self.render_vertices(),
             indices: self.indices().to_vec(),
-            surface_indices: self.surface_triangle_count() * 3,
             surface_side_ranges: self.surface_side_ranges(),
             skirt_ranges: self.skirt_index_ranges(),
         }
