@@ -5,8 +5,9 @@
 //! that uploads a finished mesh and returns the renderer's handle to it
 //! (a [`MeshHandle`]: dropping it frees the mesh). The streamer hands back
 //! what to draw ([`Streamer::drawn`]): each chunk's handle with its
-//! per-frame draw constants ([`ChunkDraw`]: the error it morphs towards and
-//! how deep to lower each side's skirt).
+//! per-frame draw constants ([`ChunkDraw`]: the error it morphs towards,
+//! how deep to lower each side's skirt, and which sides' walls all look
+//! away from the eye and are left out).
 //!
 //! # What is drawn: every frame complete, never waiting for meshing
 //!
@@ -25,6 +26,8 @@
 //!     else nearest meshed ancestor → draw it instead (a split not ready yet);
 //!                                    leaves under a drawn ancestor are not drawn
 //!   skirt depth per side = skirt_depth(L, LOD drawn across that side)
+//!   walls looking towards +i (−i, +j, −j) left out when the eye is behind
+//!     both outermost lattice planes of L on that axis
 //! ```
 //!
 //! The six face roots are meshed before the first frame, so an ancestor
