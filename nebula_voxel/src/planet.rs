@@ -517,18 +517,7 @@ impl ProceduralPlanet {
     /// surface material at every LOD (no colour pop).
     fn classify(&self, column: Column, h: i64, lod: u8) -> Voxel {
         let span = self.layout.voxel_span(lod) as f64;
-        let corner_centre = (h + 1) as f64 * span - 0.5;
-        let depth = column.height - corner_centre;
-        if depth <= 0.0 {
-            return Voxel::AIR;
-        }
-        if depth <= span {
-            column.surface
-        } else if depth <= span + 3.0 {
-            Voxel::DIRT
-        } else {
-            Voxel::STONE
-        }
+        classify_depth(column, column.height - corner_centre(h, span), span)
     }
 
     fn measure_max_slope(&self) -> f64 {
@@ -572,12 +561,17 @@ impl VoxelSource for ProceduralPlanet {
         let base_h = i64::from(key.layer) * i64::from(CHUNK_SIZE) - 1;
         let heights = self.padded_heights(key.column());
         let voxels = out.as_mut_slice();
-        for z in 0..PADDED_CHUNK_SIZE {
-            for x in 0..PADDED_CHUNK_SIZE {
-                let column = heights[(z * PADDED_CHUNK_SIZE + x) as usize];
-                for y in 0..PADDED_CHUNK_SIZE {
-                    voxels[PaddedChunkShape::linearize([x, y, z]) as usize] =
-                        self.classify(column, base_h + i64::from(y), key.lod);
+        let span = self.layout.voxel_span(key.lod) as f64;
+        let size = PADDED_CHUNK_SIZE as usize;
+        // Row by row along x, as the voxels are stored: the same arithmetic
+        // as `classify`, one corner centre per row.
+        for z in 0..size {
+            let columns = &heights[z * size..(z + 1) * size];
+            for y in 0..size {
+                let centre = corner_centre(base_h + y as i64, span);
+                let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
+                for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
+                    *voxel = classify_depth(*column, column.height - centre, span);
                 }
             }
         }
@@ -634,6 +628,27 @@ impl VoxelSource for ProceduralPlanet {
         }
         let span = self.layout.voxel_span(lod) as f64;
         (span + 2.0 * self.max_slope * (span - 1.0)) * self.layer_height
+    }
+}
+
+/// The centre, in layers, of the LOD-0 voxel in the far corner of radial
+/// voxel `h` of `span` layers: the one that voxel samples.
+fn corner_centre(h: i64, span: f64) -> f64 {
+    (h + 1) as f64 * span - 0.5
+}
+
+/// The voxel whose sample lies `depth` layers below its column's surface
+/// (`span` layers per voxel).
+fn classify_depth(column: Column, depth: f64, span: f64) -> Voxel {
+    if depth <= 0.0 {
+        return Voxel::AIR;
+    }
+    if depth <= span {
+        column.surface
+    } else if depth <= span + 3.0 {
+        Voxel::DIRT
+    } else {
+        Voxel::STONE
     }
 }
 
