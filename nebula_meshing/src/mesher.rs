@@ -157,7 +157,9 @@ impl ChunkMesher {
         Ok(mesh)
     }
 
-    /// How many greedy quads the last [`ChunkMesher::mesh`] call made.
+    /// How many quads the last [`ChunkMesher::mesh`] call triangulated:
+    /// greedy quads (clipped off the boundary rows where their corners
+    /// there are not canonical) and boundary strips.
     #[must_use]
     pub fn quad_count(&self) -> usize {
         self.greedy.quads.num_quads()

@@ -92,8 +92,9 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     } else {
         // Sides to another LOD are closed by constraining or by skirts
         // made for that LOD: both need every lattice point there. Meshes
-        // for draw-time skirts must not depend on the neighbours' LODs.
-        let dense_sides: Vec<FaceDirection> = if options.draw_time_skirts {
+        // for draw-time skirts alone must not depend on the neighbours'
+        // LODs.
+        let dense_sides: Vec<FaceDirection> = if options.draw_time_skirts && !options.constrain_edges {
             Vec::new()
         } else {
             FaceDirection::HORIZONTAL
