@@ -12,7 +12,7 @@
 //!    and on chunk boundary planes a canonical set of lattice points does
 //!    (a function of the voxels on both sides), so neighbours agree on their
 //!    shared vertices bit for bit; sides meeting another LOD take every
-//!    lattice point unless the skirts are drawn at draw-time depths;
+//!    lattice point unless only draw-time skirts close them;
 //! 4. [`constrain_edge_vertices`] for sides whose neighbour is coarser, by
 //!    any LOD difference;
 //! 5. [`generate_skirt`] on sides that meet another LOD, [`skirt_depth`] deep,
