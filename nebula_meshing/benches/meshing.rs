@@ -149,29 +149,14 @@ fn meshing(c: &mut Criterion) {
             b.iter(|| greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut greedy));
         });
         let mut binary = block_mesh_bgm::BinaryGreedyQuadsBuffer::new();
-        block_mesh_bgm::binary_greedy_quads(
-            voxels.as_slice(),
-            &PaddedChunkShape {},
-            [0; 3],
-            [33; 3],
-            faces,
-            &mut binary,
-        );
+        let binary_greedy = |out: &mut block_mesh_bgm::BinaryGreedyQuadsBuffer| {
+            block_mesh_bgm::binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, out);
+        };
+        binary_greedy(&mut binary);
         let binary_quads = binary.quads.num_quads();
         group.bench_function(
             BenchmarkId::new(format!("{name}/binary_greedy_quads"), format!("quads={binary_quads}")),
-            |b| {
-                b.iter(|| {
-                    block_mesh_bgm::binary_greedy_quads(
-                        voxels.as_slice(),
-                        &PaddedChunkShape {},
-                        [0; 3],
-                        [33; 3],
-                        faces,
-                        &mut binary,
-                    );
-                });
-            },
+            |b| b.iter(|| binary_greedy(&mut binary)),
         );
         let (bgm_voxels, bgm_opaque) = bgm_input(voxels);
         let bgm_transparent = vec![0u64; bgm_opaque.len()];

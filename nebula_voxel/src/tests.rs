@@ -297,6 +297,22 @@ fn filled_chunks_equal_voxels_read_one_by_one() {
     assert_eq!(checked, 8 * 32 * 32 * 32);
 }
 
+/// Fills every surface chunk of `column` from `warm` (its height cache as
+/// earlier fills left it) and from a cold clone, asserts they are equal,
+/// and returns how many chunks it compared.
+fn assert_fills_as_cold(warm: &ProceduralPlanet, column: ChunkColumn) -> usize {
+    let mut checked = 0;
+    for layer in warm.surface_chunk_layers(column).unwrap() {
+        let key = column.chunk(layer);
+        let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
+        warm.fill_chunk(key, &mut cached).unwrap();
+        warm.clone().fill_chunk(key, &mut cold).unwrap();
+        assert!(cached == cold, "{key:?}");
+        checked += 1;
+    }
+    checked
+}
+
 /// A column filled just after its parent (whose heights it shares every
 /// other column of) equals the same column from a cold planet: all four
 /// children, at face edges and corners too, on Earth and the small planet.
@@ -314,14 +330,7 @@ fn columns_after_their_parent_give_the_same_voxels() {
                 warm.fill_chunk(parent.chunk(layer), &mut ChunkVoxels::new(parent.chunk(layer))).unwrap();
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                     let child = ChunkColumn { face, lod, x: px * 2 + dx, y: py * 2 + dy };
-                    for layer in warm.surface_chunk_layers(child).unwrap() {
-                        let key = child.chunk(layer);
-                        let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
-                        warm.fill_chunk(key, &mut cached).unwrap();
-                        warm.clone().fill_chunk(key, &mut cold).unwrap();
-                        assert!(cached == cold, "{key:?}");
-                        checked += 1;
-                    }
+                    checked += assert_fills_as_cold(&warm, child);
                 }
             }
         }
@@ -346,15 +355,7 @@ fn columns_after_their_neighbours_give_the_same_voxels() {
                 // A 2×2 block of columns in order: each later one finds
                 // one to three of its neighbours cached.
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let column = ChunkColumn { face, lod, x: x + dx, y: y + dy };
-                    for layer in warm.surface_chunk_layers(column).unwrap() {
-                        let key = column.chunk(layer);
-                        let (mut cached, mut cold) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
-                        warm.fill_chunk(key, &mut cached).unwrap();
-                        warm.clone().fill_chunk(key, &mut cold).unwrap();
-                        assert!(cached == cold, "{key:?}");
-                        checked += 1;
-                    }
+                    checked += assert_fills_as_cold(&warm, ChunkColumn { face, lod, x: x + dx, y: y + dy });
                 }
             }
         }
