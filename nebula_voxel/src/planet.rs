@@ -415,7 +415,7 @@ impl ProceduralPlanet {
         let (face, ci, cj) =
             face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
         let span = self.layout.voxel_span(lod) as f64;
-        self.layout.sphere().direction(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
+        self.layout.sphere().direction(face, sample_coord(ci, span), sample_coord(cj, span))
     }
 
     /// The heights of `column`'s padded voxel columns (x fastest, as
@@ -480,7 +480,7 @@ impl ProceduralPlanet {
         let span = self.layout.voxel_span(column.lod) as f64;
         let warped = |base: i64| -> Vec<Option<f64>> {
             (base..base + padded)
-                .map(|c| (0..per_edge).contains(&c).then(|| sphere.warp((c as f64 + 1.0) * span - 0.5)))
+                .map(|c| (0..per_edge).contains(&c).then(|| sphere.warp(sample_coord(c, span))))
                 .collect()
         };
         let (warped_i, warped_j) = (warped(base_i), warped(base_j));
@@ -629,6 +629,13 @@ impl VoxelSource for ProceduralPlanet {
         let span = self.layout.voxel_span(lod) as f64;
         (span + 2.0 * self.max_slope * (span - 1.0)) * self.layer_height
     }
+}
+
+/// The in-face coordinate a voxel column `c` of `span` cells samples: the
+/// centre of the LOD-0 column in its far corner (module docs). One owner,
+/// so `column_direction` and the per-row warps of a chunk agree bit for bit.
+fn sample_coord(c: i64, span: f64) -> f64 {
+    (c as f64 + 1.0) * span - 0.5
 }
 
 /// The centre, in layers, of the LOD-0 voxel in the far corner of radial

@@ -141,12 +141,14 @@ struct CachedColumn<H> {
     chunks: HashMap<i32, LoadedChunk<H>>,
     /// Frame it was last drawn or wanted in.
     last_used: u64,
+    /// Its outermost wall planes, for [`WallPlanes::back_sides`].
+    walls: WallPlanes,
 }
 
 impl<H: MeshHandle> CachedColumn<H> {
     fn new<S: VoxelSource + ?Sized>(voxels: &S, column: ChunkColumn, frame: u64) -> Self {
         let layers = voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
-        Self { layers, chunks: HashMap::new(), last_used: frame }
+        Self { layers, chunks: HashMap::new(), last_used: frame, walls: WallPlanes::of(voxels.layout(), column) }
     }
 
     fn ready(&self) -> bool {
@@ -803,9 +805,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.columns = columns
             .iter()
             .map(|&column| {
-                if let Some(cached) = cache.columns.get_mut(&column) {
-                    cached.last_used = frame;
-                }
+                let walls = match cache.columns.get_mut(&column) {
+                    Some(cached) => {
+                        cached.last_used = frame;
+                        cached.walls
+                    }
+                    None => WallPlanes::of(layout, column),
+                };
                 // The tree's cached bounds; a stand-in the tree merged away
                 // asks the source (noise) once here. A coarse chunk drawn
                 // behind the horizon is left out: its voxels round the
@@ -818,7 +824,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
-                (column, chunk_draw(voxels, column, &set, options, eye))
+                (column, chunk_draw(voxels, column, &set, options, walls.back_sides(eye)))
             })
             .collect();
         self.draw.holes = holes;
@@ -965,7 +971,7 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
     column: ChunkColumn,
     drawn: &HashSet<ChunkColumn>,
     options: DrawOptions,
-    eye: nebula_math::DVec3,
+    back_sides: u8,
 ) -> ChunkDraw {
     let layout = voxels.layout();
     let max_lod = layout.max_lod();
@@ -973,7 +979,7 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
         MorphRule::Own => voxels.geometric_error(column.lod),
         _ => layout.merge_error(column.lod),
     };
-    let hidden_sides = if options.cull_back_sides { back_sides(layout, column, eye) } else { 0 };
+    let hidden_sides = if options.cull_back_sides { back_sides } else { 0 };
     let mut skirt_depths = [0.0f32; 4];
     if !options.skirts {
         return ChunkDraw { parent_error, skirt_depths, hidden_sides };
@@ -1001,32 +1007,49 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
     ChunkDraw { parent_error, skirt_depths, hidden_sides }
 }
 
-/// The horizontal sides of `column` whose wall faces all look away from
-/// `eye` (bit `FaceDirection as usize`). A wall looking towards +i lies in
-/// the plane through the planet centre of its lattice line `i = c` and
-/// faces the eye only when the eye is on that plane's +i side; the column's
-/// walls lie in the planes from its first to its last line, a pencil about
-/// one axis, so the eye is behind all of them when it is behind the two
-/// outermost (by more than a millimetre, so rounding never hides a wall
-/// seen edge-on).
-fn back_sides(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn, eye: nebula_math::DVec3) -> u8 {
-    const MARGIN_M: f64 = 1e-3;
-    let sphere = layout.sphere();
-    let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
-    let mut hidden = 0;
-    for (along_u, first, positive, negative) in [
-        (true, i64::from(column.x) * size, FaceDirection::PosX, FaceDirection::NegX),
-        (false, i64::from(column.y) * size, FaceDirection::PosZ, FaceDirection::NegZ),
-    ] {
-        let sides = [first, first + size].map(|c| eye.dot(sphere.lattice_plane_normal(column.face, along_u, c)));
-        if sides.iter().all(|&d| d < -MARGIN_M) {
-            hidden |= 1 << positive as u8;
-        }
-        if sides.iter().all(|&d| d > MARGIN_M) {
-            hidden |= 1 << negative as u8;
-        }
+/// The outermost lattice planes of a column's side walls: the unit
+/// normals (towards growing `i`, resp. `j`) of its first and last `i` line
+/// and of its first and last `j` line, computed once per column.
+#[derive(Clone, Copy, Debug)]
+struct WallPlanes {
+    i: [nebula_math::DVec3; 2],
+    j: [nebula_math::DVec3; 2],
+}
+
+impl WallPlanes {
+    fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> Self {
+        let sphere = layout.sphere();
+        let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
+        let planes = |along_u: bool, first: i64| {
+            [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
+        };
+        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size) }
     }
-    hidden
+
+    /// The horizontal sides whose wall faces all look away from `eye` (bit
+    /// `FaceDirection as usize`). A wall looking towards +i lies in the
+    /// plane through the planet centre of its lattice line `i = c` and
+    /// faces the eye only when the eye is on that plane's +i side; the
+    /// column's walls lie in the planes from its first to its last line, a
+    /// pencil about one axis, so the eye is behind all of them when it is
+    /// behind the two outermost (by more than a millimetre, so rounding
+    /// never hides a wall seen edge-on).
+    fn back_sides(&self, eye: nebula_math::DVec3) -> u8 {
+        const MARGIN_M: f64 = 1e-3;
+        let mut hidden = 0;
+        for (planes, positive, negative) in
+            [(self.i, FaceDirection::PosX, FaceDirection::NegX), (self.j, FaceDirection::PosZ, FaceDirection::NegZ)]
+        {
+            let sides = planes.map(|normal| eye.dot(normal));
+            if sides.iter().all(|&d| d < -MARGIN_M) {
+                hidden |= 1 << positive as u8;
+            }
+            if sides.iter().all(|&d| d > MARGIN_M) {
+                hidden |= 1 << negative as u8;
+            }
+        }
+        hidden
+    }
 }
 
 /// Why a [`Streamer`] could not start or take new voxels.

@@ -636,6 +636,15 @@ fn a_shaft_dug_against_a_lod_seam_opens_no_hole() {
     assert_eq!(app.stale_chunks(), 0);
 }
 
+/// Earth 1 km up looking 5° down, so the top rows are sky: the view of the
+/// sky tests. Planet settings, eye, point looked at.
+fn sky_view() -> (PlanetSettings, DVec3, DVec3) {
+    let settings = earth();
+    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
+    let (eye, look) = pose(&settings, dir, 1_000.0, dir.cross(DVec3::Z), 5.0);
+    (settings, eye, look)
+}
+
 /// The sky, sea and haze are drawn only without a background: with one
 /// (as every crack check here sets), the sky is the clear colour exactly;
 /// without, it is a blue sky, not the clear colour. (Earth, 1 km up,
@@ -645,9 +654,7 @@ fn the_sky_is_drawn_only_without_a_background() {
     if !adapter_or_skip("sky") {
         return;
     }
-    let settings = earth();
-    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
-    let (eye, look) = pose(&settings, dir, 1_000.0, dir.cross(DVec3::Z), 5.0);
+    let (settings, eye, look) = sky_view();
     let with_background = settled("sky-off", &settings, &shot(eye, look, 60.0), DrawOptions::default());
     let plain = Shot { background: None, ..shot(eye, look, 60.0) };
     let with_sky = settled("sky-on", &settings, &plain, DrawOptions::default());
@@ -669,9 +676,7 @@ fn a_low_sun_turns_the_sky_orange() {
     if !adapter_or_skip("sun") {
         return;
     }
-    let settings = earth();
-    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
-    let (eye, look) = pose(&settings, dir, 1_000.0, dir.cross(DVec3::Z), 5.0);
+    let (settings, eye, look) = sky_view();
     let (width, height) = SIZE;
     // Mean red minus blue over the top quarter of the picture (sky).
     let warmth = |elevation: f64| -> f64 {
