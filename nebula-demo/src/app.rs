@@ -13,8 +13,8 @@ use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh};
 use nebula_voxel::{ChunkKey, EditedSource, ProceduralPlanet};
 pub use nebula_world::ecs::PlanetStream;
 pub use nebula_world::stream::{
-    DrawList, DrawOptions, MeshCache, MorphRule, STAND_IN_LEVEL_STEP, StageTimes, StreamFigures as FrameFigures,
-    Streamer,
+    DrawList, DrawOptions, MeshCache, MorphRule, OpaqueSea, STAND_IN_LEVEL_STEP, StageTimes,
+    StreamFigures as FrameFigures, Streamer,
 };
 
 use crate::gpu::{DebugView, FrameParams, Gpu, GpuMesh};
@@ -98,6 +98,18 @@ impl PlanetApp {
     /// The streamer, to change its budget or options.
     pub fn streamer_mut(&mut self) -> Mut<'_, Stream> {
         self.world.resource_mut::<Stream>()
+    }
+
+    /// Whether the frames drawn show the sea (the shaded view with no
+    /// background): then the streamer draws the sea bed the sea hides as
+    /// coarse stand-ins ([`OpaqueSea`]) instead of refining it. Call it
+    /// before the first [`PlanetApp::step`] (so that the first frames do
+    /// not ask for detail under the sea) and whenever what
+    /// [`PlanetApp::draw`] is given changes.
+    pub fn set_sea_drawn(&mut self, drawn: bool) {
+        let radius = nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius();
+        let sea = drawn.then(|| OpaqueSea { radius, hiding_depth: crate::gpu::sea_hiding_depth(radius) });
+        self.streamer_mut().0.set_opaque_sea(sea);
     }
 
     /// Keep CPU copies of meshes (needed by the crack oracle).

@@ -56,8 +56,25 @@ struct FrameUniform {
     /// Camera-relative clip → world, for the sky pass's view rays.
     inv_view_proj: [[f32; 4]; 4],
     /// x: planet (sea level) radius, y: eye radius, z: eye altitude (both
-    /// from f64), w: 1 where the sky is drawn.
+    /// from f64), w: the water's extinction length ([`water_extinction`]).
     planet: [f32; 4],
+}
+
+/// Metres of water that dim the sea bed seen through them by a factor e:
+/// 3 m, or a thousandth of a small planet's radius (so that its shallow
+/// seas still read as sea).
+#[must_use]
+pub fn water_extinction(radius: f64) -> f64 {
+    (0.001 * radius).min(3.0)
+}
+
+/// The depth of water under which the sky pass hides the sea bed: light
+/// from it is dimmed by e⁻¹², 6·10⁻⁶ of itself, far below an 8-bit step
+/// even where the sRGB curve is steepest, so nothing under it changes a
+/// pixel.
+#[must_use]
+pub fn sea_hiding_depth(radius: f64) -> f64 {
+    12.0 * water_extinction(radius)
 }
 
 #[repr(C)]
@@ -440,7 +457,7 @@ impl Gpu {
                 radius as f32,
                 frame.eye.length() as f32,
                 (frame.eye.length() - radius) as f32,
-                if sky.is_some() { 1.0 } else { 0.0 },
+                water_extinction(radius) as f32,
             ],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));

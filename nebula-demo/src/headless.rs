@@ -241,6 +241,7 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
         min_radius
     );
     app.keep_cpu_meshes(shot.background.is_some());
+    app.set_sea_drawn(shot.background.is_none() && shot.view == DebugView::Shaded);
     let started = Instant::now();
     let first_frame_ms = prime(app)?;
     let mut frames = 0;
@@ -352,6 +353,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "skirt_triangles_held": f.skirt_triangles_held,
         "stand_ins": f.stand_ins,
         "behind_horizon": f.behind_horizon,
+        "under_sea": f.under_sea,
         "lod_histogram": histogram,
         "max_neighbor_lod_diff": f.max_neighbor_lod_diff,
         "cpu_ms": {

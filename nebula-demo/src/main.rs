@@ -616,6 +616,7 @@ impl Windowed {
             camera: camera(self.eye, forward, up, f64::from(size.0) / f64::from(size.1.max(1))),
             fov_y_degrees: self.shot.fov_y_degrees,
         });
+        state.app.set_sea_drawn(self.shot.background.is_none() && self.view == DebugView::Shaded);
         state.app.step();
         let texture = match state.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,

@@ -13,7 +13,8 @@ struct Frame {
     eye_low: vec4<f32>,
     // Camera-relative clip → world (the sky pass's view rays).
     inv_view_proj: mat4x4<f32>,
-    // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: sky on.
+    // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: metres
+    // of water that dim what is under them by a factor e (gpu::water_extinction).
     planet: vec4<f32>,
 };
 
@@ -288,7 +289,7 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
         let glint = vec3<f32>(1.0, 0.9, 0.7) * pow(max(dot(reflected, frame.sun.xyz), 0.0), 300.0) * 2.0 * lit;
         let surface = mix(water, sky_colour(reflected, normal), fresnel) + glint;
         // Shallow water shows the sea floor.
-        var opacity = 1.0 - exp(-(terrain - sea) / min(3.0, 0.001 * radius));
+        var opacity = 1.0 - exp(-(terrain - sea) / frame.planet.w);
         if (sea >= terrain) {
             opacity = 1.0;
         }

@@ -61,6 +61,7 @@ impl VoxelSource for FlatSource {
             max_layer: self.ground,
             min_radius: r(self.ground - 1),
             max_radius: r(self.ground + 1),
+            sea_bed_only: false,
         })
     }
 

@@ -341,12 +341,23 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
             let sphere = self.layout().sphere();
             bounds.min_radius = sphere.layer_radius(bounds.min_layer as f64);
             bounds.max_radius = sphere.layer_radius(bounds.max_layer as f64 + 1.0);
+            // An edit may have put anything there.
+            bounds.sea_bed_only = false;
         }
         Ok(bounds)
     }
 
     fn geometric_error(&self, lod: u8) -> f64 {
         self.base.geometric_error(lod)
+    }
+
+    fn sea_bed_below(&self, column: ChunkColumn, radius: f64) -> Result<bool, VoxelError> {
+        // An edit may have put anything anywhere in its column.
+        if self.touched_columns.contains_key(&column) {
+            self.layout().check_key(column.chunk(0))?;
+            return Ok(false);
+        }
+        self.base.sea_bed_below(column, radius)
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

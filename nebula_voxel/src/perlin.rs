@@ -271,6 +271,16 @@ pub struct Fractal {
 /// `noise::RidgedMulti`'s attenuation (its default).
 const RIDGED_ATTENUATION: f64 = 2.0;
 
+/// The steepest [`BranchlessPerlin`] gets: its largest gradient, per unit
+/// of noise space, is 2.5·√3 (4.3301…), rounded up.
+///
+/// Where it comes from: local search over the kernel's corner gradients
+/// and offsets, from thousands of random starts, converges on 2.5·√3 and
+/// never beyond (`no_gradient_steeper_than_the_bound` repeats it): the
+/// fade's steepest slope (15/8) times the gradients' reach, scaled by
+/// 2/√3. Found, not proven, like the planet's slope bound.
+pub const PERLIN_MAX_GRADIENT: f64 = 4.3302;
+
 impl Fractal {
     /// `noise::Fbm::<Perlin>::new(seed)` with these octaves, persistence and
     /// lacunarity.
@@ -329,6 +339,53 @@ impl Fractal {
             attenuation *= self.persistence;
         }
         self.finish(sum)
+    }
+
+    /// Bounds `(low, high)` of the sum anywhere within `radius` (noise
+    /// space) of `point`.
+    ///
+    /// Each octave's noise is its value at `point` give or take its
+    /// steepest change over the radius ([`PERLIN_MAX_GRADIENT`] times the
+    /// octave's frequency), within [−1, 1]; octaves too fine for that to
+    /// say anything are not evaluated. The octaves' ranges are summed as
+    /// [`Self::get`] sums their values (a ridged octave's signal
+    /// `(1 − |n|)²` falls as `|n|` grows, and scales the next one's weight),
+    /// so the bounds cost at most one evaluation and are tight where the
+    /// radius is small against the coarse octaves' wavelengths.
+    #[must_use]
+    pub fn range_near(&self, point: [f64; 3], radius: f64) -> (f64, f64) {
+        let mut point = point;
+        let (mut low, mut high) = (0.0, 0.0);
+        let (mut weight_low, mut weight_high) = (1.0_f64, 1.0_f64);
+        let mut attenuation = self.first_attenuation();
+        let mut reach = radius * PERLIN_MAX_GRADIENT;
+        for source in &self.sources {
+            let (noise_low, noise_high) = if reach >= 2.0 {
+                (-1.0, 1.0)
+            } else {
+                let noise = source.get(point);
+                ((noise - reach).max(-1.0), (noise + reach).min(1.0))
+            };
+            let (term_low, term_high) = match self.kind {
+                FractalKind::Fbm => (noise_low, noise_high),
+                FractalKind::Ridged => {
+                    let farthest = noise_low.abs().max(noise_high.abs());
+                    let nearest =
+                        if noise_low <= 0.0 && noise_high >= 0.0 { 0.0 } else { noise_low.abs().min(noise_high.abs()) };
+                    let signal_low = (1.0 - farthest) * (1.0 - farthest) * weight_low;
+                    let signal_high = (1.0 - nearest) * (1.0 - nearest) * weight_high;
+                    weight_low = (signal_low / RIDGED_ATTENUATION).clamp(0.0, 1.0);
+                    weight_high = (signal_high / RIDGED_ATTENUATION).clamp(0.0, 1.0);
+                    (signal_low, signal_high)
+                }
+            };
+            low += term_low * attenuation;
+            high += term_high * attenuation;
+            point = point.map(|c| c * self.lacunarity);
+            reach *= self.lacunarity;
+            attenuation *= self.persistence;
+        }
+        (self.finish(low), self.finish(high))
     }
 
     /// The first octave's weight: persistence for `Fbm`, 1 for
@@ -445,6 +502,97 @@ mod tests {
     /// cells are shared by runs of points), at Earth-scale offsets and at
     /// steps from far below to far above the cell size (an odd count, so a
     /// point is left over after the pairs).
+    /// Local search from random starts over the kernel's corner
+    /// gradients (each one of the 12) and offsets finds no gradient
+    /// steeper than [`PERLIN_MAX_GRADIENT`], and comes within 1 % of it
+    /// (so the bound is not slack either).
+    #[test]
+    fn no_gradient_steeper_than_the_bound() {
+        fn steepness(gradients: &[[f64; 3]; 8], p: [f64; 3]) -> f64 {
+            let h = 1e-6;
+            let f = |q: [f64; 3]| kernel::<f64>(q, gradients);
+            (0..3)
+                .map(|axis| {
+                    let (mut a, mut b) = (p, p);
+                    a[axis] += h;
+                    b[axis] -= h;
+                    ((f(a) - f(b)) / (2.0 * h)).powi(2)
+                })
+                .sum::<f64>()
+                .sqrt()
+        }
+        let mut state = 99_u64;
+        let mut next = || nebula_math::unit_random(&mut state);
+        let gradient = |k: usize| [GRAD_X[k], GRAD_Y[k], GRAD_Z[k]];
+        let mut steepest = 0.0_f64;
+        for _ in 0..400 {
+            let mut gradients: [[f64; 3]; 8] = std::array::from_fn(|_| gradient((next() * 12.0) as usize));
+            let mut p = [0.0; 3].map(|_: f64| next() * 0.98 + 0.01);
+            let mut best = steepness(&gradients, p);
+            let mut step = 0.1;
+            for _ in 0..40 {
+                for corner in 0..8 {
+                    for k in 0..12 {
+                        let old = gradients[corner];
+                        gradients[corner] = gradient(k);
+                        let s = steepness(&gradients, p);
+                        if s > best { best = s } else { gradients[corner] = old }
+                    }
+                }
+                for axis in 0..3 {
+                    for sign in [-1.0, 1.0] {
+                        let mut q = p;
+                        q[axis] = (q[axis] + sign * step).clamp(1e-5, 1.0 - 1e-5);
+                        let s = steepness(&gradients, q);
+                        if s > best {
+                            best = s;
+                            p = q;
+                        }
+                    }
+                }
+                step *= 0.85;
+            }
+            steepest = steepest.max(best);
+        }
+        println!("steepest gradient found {steepest}");
+        assert!(steepest <= PERLIN_MAX_GRADIENT, "{steepest}");
+        assert!(steepest > 0.99 * PERLIN_MAX_GRADIENT, "{steepest}");
+    }
+
+    /// Every value within the radius lies in [`Fractal::range_near`]'s
+    /// bounds, for both kinds, from balls far smaller than the coarsest
+    /// octave to larger than it; and the bounds narrow as the ball does.
+    #[test]
+    fn ranges_hold_every_value_near() {
+        let fractals = [Fractal::fbm(5, 16, 0.45, 2.0), Fractal::ridged(6, 15, 2.0), Fractal::fbm(7, 8, 0.5, 2.1)];
+        let mut state = 5_u64;
+        let mut next = || nebula_math::unit_random(&mut state);
+        for fractal in &fractals {
+            let mut widths = Vec::new();
+            for radius in [1e-4, 1e-3, 1e-2, 0.1, 1.0] {
+                let mut width = 0.0;
+                for _ in 0..200 {
+                    let centre = [0.0; 3].map(|_: f64| (next() - 0.5) * 200.0);
+                    let (low, high) = fractal.range_near(centre, radius);
+                    width += high - low;
+                    for _ in 0..20 {
+                        // A point in the ball, on its surface half the time.
+                        let d = [0.0; 3].map(|_: f64| next() - 0.5);
+                        let norm = d.iter().map(|v| v * v).sum::<f64>().sqrt();
+                        let r = if next() < 0.5 { radius } else { radius * next() };
+                        let at = [0, 1, 2].map(|a| centre[a] + d[a] / norm * r);
+                        let value = fractal.get(at);
+                        assert!(low <= value && value <= high, "{value} outside [{low}, {high}] at radius {radius}");
+                    }
+                }
+                widths.push(width / 200.0);
+            }
+            println!("mean widths {widths:?}");
+            assert!(widths.windows(2).all(|w| w[0] < w[1]), "{widths:?}");
+            assert!(widths[0] < 0.05, "{widths:?}");
+        }
+    }
+
     #[test]
     fn batches_equal_single_points() {
         let mut state = 0x005E_ED0F_BA7C_u64;

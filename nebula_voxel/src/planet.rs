@@ -338,6 +338,42 @@ impl ProceduralPlanet {
         )
     }
 
+    /// Bounds `(low, high)`, in layers, of H over the square of lattice
+    /// cells `[i − half, i + half] × [j − half, j + half]` on `face`.
+    ///
+    /// Every direction of the square lies within the angle to its farthest
+    /// corner or edge middle (1 % more, for the curved edges between) of
+    /// the centre's, so each noise sum lies in its range over that ball
+    /// ([`Fractal::range_near`]), and H, which rises with each sum
+    /// ([`Self::combine`]: the ridges and the mask are never negative),
+    /// between the heights of the ranges' ends.
+    ///
+    /// Why: S times the distance (the five-sample bound) grows without end
+    /// with a column's size, while H's range is that of the octaves coarse
+    /// enough to matter; at LOD 9 on an Earth S allows ±4.4 km where the
+    /// terrain varies by hundreds of metres.
+    fn height_range(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> (f64, f64) {
+        let sphere = self.layout.sphere();
+        let centre = sphere.direction(face, i, j);
+        let mut angle = 0.0_f64;
+        for (a, b) in
+            [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0)]
+        {
+            angle = angle.max(centre.angle_between(sphere.direction(face, i + a * half, j + b * half)));
+        }
+        // Chords are shorter than their angles.
+        let reach = angle * 1.01;
+        let p = centre * self.noise_scale;
+        let (continents_low, continents_high) = self.continents.range_near(p.to_array(), reach * self.noise_scale);
+        let (ridges_low, ridges_high) = self.ridges.range_near((p * 2.0).to_array(), reach * self.noise_scale * 2.0);
+        let (hills_low, hills_high) =
+            self.hills.range_near((centre * self.detail_scale).to_array(), reach * self.detail_scale);
+        (
+            self.combine(continents_low, ridges_low, hills_low) / self.layer_height,
+            self.combine(continents_high, ridges_high, hills_high) / self.layer_height,
+        )
+    }
+
     /// [`Self::height_at`] of many unit directions, into `out` (same
     /// length), bit-identical: each octave runs over all of them, and a run
     /// of neighbouring columns in one noise cell pays its corner hashes
@@ -394,7 +430,7 @@ impl ProceduralPlanet {
     /// comes down to the sea near the poles.
     fn surface(&self, height_m: f64, sin_latitude: f64) -> Voxel {
         let amplitude = self.settings.amplitude;
-        let snow_line = amplitude * (0.55 - 0.65 * sin_latitude.abs().powi(3));
+        let snow_line = self.snow_line(sin_latitude);
         let shore = (0.001 * amplitude).max(2.0 * self.layer_height);
         if height_m > snow_line {
             Voxel::SNOW
@@ -407,6 +443,29 @@ impl ProceduralPlanet {
         } else {
             Voxel::GRASS
         }
+    }
+
+    /// Height (metres) above which a column at `sin_latitude` is snow: more
+    /// than half the relief at the equator, 10 % of it below sea level at
+    /// the poles.
+    fn snow_line(&self, sin_latitude: f64) -> f64 {
+        self.settings.amplitude * (0.55 - 0.65 * sin_latitude.abs().powi(3))
+    }
+
+    /// The lowest [`Self::snow_line`] anywhere over `column`: at the
+    /// latitude nearest a pole among its corners and centre, pushed
+    /// polewards by the column's angular size (the patch can reach that
+    /// much further).
+    fn lowest_snow_line(&self, column: ChunkColumn) -> f64 {
+        let sphere = self.layout.sphere();
+        let size = f64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod) as f64;
+        let (i0, j0) = (f64::from(column.x) * size, f64::from(column.y) * size);
+        let mut polewards = 0.0_f64;
+        for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
+            polewards = polewards.max(sphere.direction(column.face, i0 + a * size, j0 + b * size).z.abs());
+        }
+        let reach = size * self.layer_height / self.settings.radius * 2.0;
+        self.snow_line((polewards + reach).min(1.0))
     }
 
     /// The unit direction [`Self::column`] samples.
@@ -582,21 +641,30 @@ impl VoxelSource for ProceduralPlanet {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
-        // Sample the four corners and the centre: every point of the column
-        // is within `step` = half the column (in |Δi| + |Δj|) of one of them
-        // — as close as a 3 × 3 grid gets, for 5 samples instead of 9 — so
-        // S·step covers what lies between. (The LOD tree asks for every
-        // node it creates: this is its hottest call.)
+        // H's range from the noise's ranges (`height_range`: at most one
+        // evaluation, tight at coarse LODs). Where S over half a column is
+        // narrower (fine LODs), also sample the four corners and the
+        // centre: every point of the column is within `step` = half the
+        // column (in |Δi| + |Δj|) of one of them — as close as a 3 × 3 grid
+        // gets, for 5 samples instead of 9 — so S·step covers what lies
+        // between. (The LOD tree asks for every node it creates: this is
+        // its hottest call.)
         let step = chunk / 2.0;
-        let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
-        for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
-            let i = f64::from(column.x) * chunk + a * chunk;
-            let j = f64::from(column.y) * chunk + b * chunk;
-            let h = self.height_layers(column.face, i, j);
-            low = low.min(h);
-            high = high.max(h);
-        }
         let margin = self.max_slope * step;
+        let centre = ((f64::from(column.x) + 0.5) * chunk, (f64::from(column.y) + 0.5) * chunk);
+        let (mut low, mut high) = self.height_range(column.face, centre, step);
+        if 2.0 * margin < high - low {
+            let (mut sampled_low, mut sampled_high) = (f64::INFINITY, f64::NEG_INFINITY);
+            for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
+                let i = f64::from(column.x) * chunk + a * chunk;
+                let j = f64::from(column.y) * chunk + b * chunk;
+                let h = self.height_layers(column.face, i, j);
+                sampled_low = sampled_low.min(h);
+                sampled_high = sampled_high.max(h);
+            }
+            low = low.max(sampled_low - margin);
+            high = high.min(sampled_high + margin);
+        }
         let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;
         // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
         // column's height H. A solid voxel with air beside it lies down to
@@ -604,14 +672,20 @@ impl VoxelSource for ProceduralPlanet {
         // one voxel (span cells) further out: S·span lower still, and its
         // top again up to a voxel below its H.
         let neighbour = self.max_slope * span + span;
-        let min_layer = ((low - margin).max(-limit) + 0.5 - span - neighbour).floor() as i64;
-        let max_layer = ((high + margin).min(limit) + 0.5).ceil() as i64;
+        let min_layer = (low.max(-limit) + 0.5 - span - neighbour).floor() as i64;
+        let max_layer = (high.min(limit) + 0.5).ceil() as i64;
         let sphere = self.layout.sphere();
+        // Every column's H is below `high`; where that is under the sea and under the snow line (which dips
+        // below sea level near the poles), every column is sea bed
+        // (`surface`), and so is every voxel under it (`classify_depth`).
+        let highest_m = high * self.layer_height;
+        let sea_bed_only = highest_m < 0.0 && highest_m < self.lowest_snow_line(column);
         Ok(SurfaceBounds {
             min_layer,
             max_layer,
             min_radius: sphere.layer_radius(min_layer as f64),
             max_radius: sphere.layer_radius(max_layer as f64 + 1.0),
+            sea_bed_only,
         })
     }
 
@@ -645,12 +719,14 @@ fn corner_centre(h: i64, span: f64) -> f64 {
 }
 
 /// The voxel whose sample lies `depth` layers below its column's surface
-/// (`span` layers per voxel).
+/// (`span` layers per voxel). Under the sea the whole column is sea bed
+/// (sediment), so a wall of the sea floor is sea bed too and gets the
+/// renderer's water.
 fn classify_depth(column: Column, depth: f64, span: f64) -> Voxel {
     if depth <= 0.0 {
         return Voxel::AIR;
     }
-    if depth <= span {
+    if depth <= span || column.surface == Voxel::SEABED {
         column.surface
     } else if depth <= span + 3.0 {
         Voxel::DIRT

@@ -16,6 +16,11 @@ pub struct SurfaceBounds {
     pub min_radius: f64,
     /// Radius of the top of `max_layer`, metres.
     pub max_radius: f64,
+    /// Whether every solid voxel of the column is [`Voxel::SEABED`]: the
+    /// whole column lies under the sea, so a renderer that covers the sea
+    /// bed with water covers all of it. `false` where the source cannot
+    /// tell.
+    pub sea_bed_only: bool,
 }
 
 /// A planet's voxels at any LOD, for any chunk.
@@ -55,6 +60,20 @@ pub trait VoxelSource: Send + Sync {
     /// the far side of the planet.
     fn lowest_surface_radius(&self) -> Option<f64> {
         None
+    }
+
+    /// Whether every solid voxel of `column` is [`Voxel::SEABED`] and its
+    /// whole surface lies below `radius` (metres), at every LOD under the
+    /// column: a renderer whose sea hides the sea bed under a given depth
+    /// of water need not refine, mesh or draw such a column in detail.
+    /// Conservative: `false` where the source cannot tell. By default, from
+    /// [`VoxelSource::surface_bounds`].
+    ///
+    /// # Errors
+    /// As [`VoxelSource::surface_bounds`].
+    fn sea_bed_below(&self, column: ChunkColumn, radius: f64) -> Result<bool, VoxelError> {
+        let bounds = self.surface_bounds(column)?;
+        Ok(bounds.sea_bed_only && bounds.max_radius <= radius)
     }
 
     /// The radial chunk layers of `column` that can contain surface.

@@ -363,6 +363,111 @@ fn columns_after_their_neighbours_give_the_same_voxels() {
     assert!(checked >= 48, "only {checked} chunks checked");
 }
 
+/// The materials of the solid voxels in a column's surface chunks (not
+/// their padding), and the radius of the highest one's top.
+fn surface_materials(planet: &ProceduralPlanet, column: ChunkColumn) -> (std::collections::HashSet<Voxel>, f64) {
+    let layout = planet.layout();
+    let span = layout.voxel_span(column.lod);
+    let mut found = std::collections::HashSet::new();
+    let mut top = f64::NEG_INFINITY;
+    let mut voxels = ChunkVoxels::new(column.chunk(0));
+    for layer in planet.surface_chunk_layers(column).unwrap() {
+        planet.fill_chunk(column.chunk(layer), &mut voxels).unwrap();
+        for z in 1..=CHUNK_SIZE {
+            for y in 1..=CHUNK_SIZE {
+                for x in 1..=CHUNK_SIZE {
+                    let voxel = voxels.get([x, y, z]).unwrap();
+                    if voxel.is_solid() {
+                        found.insert(voxel);
+                        let h = i64::from(layer) * i64::from(CHUNK_SIZE) + i64::from(y) - 1;
+                        top = top.max(layout.sphere().layer_radius(((h + 1) * span) as f64));
+                    }
+                }
+            }
+        }
+    }
+    (found, top)
+}
+
+/// On an Earth, at every LOD up to a twentieth of a face, the voxel tops of
+/// columns lie within their column's bounds; and from LOD 8 up those are
+/// most often several times narrower than the steepest slope allows over
+/// the column (the noise's own ranges, `ProceduralPlanet::height_range`).
+#[test]
+fn earth_surface_bounds_hold_the_tops_and_stay_narrow() {
+    let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    let layout = planet.layout();
+    let mut state = 23_u64;
+    let mut next = || nebula_math::unit_random(&mut state);
+    let mut ratios = Vec::new();
+    for n in 0..150 {
+        let lod = (n % 15) as u8;
+        let per_edge = f64::from(layout.chunks_per_edge(lod));
+        let column = ChunkColumn {
+            face: CubeFace::ALL[n % 6],
+            lod,
+            x: (next() * per_edge) as u32,
+            y: (next() * per_edge) as u32,
+        };
+        let bounds = planet.surface_bounds(column).unwrap();
+        let span = layout.voxel_span(lod);
+        for _ in 0..6 {
+            let (a, b) = ((next() * 32.0) as u32, (next() * 32.0) as u32);
+            let top = column_top(planet, column.face, lod, column.x * 32 + a, column.y * 32 + b);
+            assert!(
+                top - span >= bounds.min_layer && top - 1 <= bounds.max_layer,
+                "{column:?}: top {top} outside {bounds:?}"
+            );
+        }
+        if lod >= 8 {
+            let slope_width = planet.max_slope() * f64::from(CHUNK_SIZE) * span as f64;
+            ratios.push(slope_width / (bounds.max_layer - bounds.min_layer) as f64);
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    println!("slope bound / these bounds from LOD 8 up: {ratios:.1?}");
+    assert!(ratios[ratios.len() / 2] > 2.0, "{ratios:?}");
+}
+
+/// A column said to be sea bed below a radius holds no other solid voxel,
+/// at any latitude, and nothing above that radius; and the snow line is
+/// why "under sea level" is not enough: near the poles, columns wholly
+/// under the sea hold snow (polar ice).
+#[test]
+fn sea_bed_below_holds_nothing_but_sea_bed_below() {
+    let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    let layout = planet.layout();
+    let sea = layout.sphere().radius();
+    let mut state = 17_u64;
+    let (mut sea_bed, mut polar_ice) = (0, 0);
+    for n in 0..200 {
+        let lod = 2 + (nebula_math::unit_random(&mut state) * 10.0) as u8;
+        let per_edge = f64::from(layout.chunks_per_edge(lod));
+        // Half the columns near a pole, where the snow line is under the sea.
+        let (face, spread) = if n % 2 == 0 {
+            ([CubeFace::PosZ, CubeFace::NegZ][n / 2 % 2], 0.3)
+        } else {
+            (CubeFace::ALL[n / 2 % 6], 1.0)
+        };
+        let mut at = || ((0.5 + (nebula_math::unit_random(&mut state) - 0.5) * spread) * per_edge) as u32;
+        let column = ChunkColumn { face, lod, x: at(), y: at() };
+        let below = sea - 4.0 * nebula_math::unit_random(&mut state) * layout.sphere().layer_height();
+        let (materials, top) = surface_materials(planet, column);
+        if planet.sea_bed_below(column, below).unwrap() {
+            sea_bed += 1;
+            assert_eq!(materials, [Voxel::SEABED].into(), "{column:?} is not all sea bed");
+            assert!(top <= below, "{column:?}: a voxel top at {top} over {below}");
+            let bounds = planet.surface_bounds(column).unwrap();
+            assert!(!bounds.sea_bed_only || materials == [Voxel::SEABED].into());
+        } else if top < sea && materials.contains(&Voxel::SNOW) {
+            polar_ice += 1;
+        }
+    }
+    println!("{sea_bed} columns all sea bed, {polar_ice} under the sea with polar ice");
+    assert!(sea_bed >= 30, "too few sea-bed columns to say anything: {sea_bed}");
+    assert!(polar_ice >= 3, "no polar ice under the sea: the snow-line clause is untested ({polar_ice})");
+}
+
 fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }

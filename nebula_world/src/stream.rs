@@ -279,6 +279,29 @@ impl<S> Meshing<S> {
     }
 }
 
+/// A sea the renderer draws over the sea bed
+/// ([`Voxel::SEABED`](nebula_voxel::Voxel::SEABED)), opaque under
+/// `hiding_depth` of water. Seen from above its surface, a column of sea
+/// bed wholly deeper than that is hidden, so the streamer draws it as its
+/// coarsest ancestor that is hidden too ([`VoxelSource::sea_bed_below`])
+/// instead of meshing it in detail, as it does behind the horizon.
+///
+/// Why coarse and not left out: whatever the renderer shows where nothing
+/// is drawn, a coarse chunk in its place keeps it from showing what lies
+/// behind the sea bed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpaqueSea {
+    /// Radius of the sea's surface, metres.
+    pub radius: f64,
+    /// Depth of water, metres, under which the sea bed no longer shows
+    /// (nothing under it changes a pixel).
+    pub hiding_depth: f64,
+}
+
+/// Columns [`Streamer`] remembers as under the sea or not before it
+/// forgets them all (about 10 MB).
+const MAX_SEA_BED_MEMO: usize = 200_000;
+
 /// What the next frame draws.
 #[derive(Default, Clone)]
 pub struct DrawList {
@@ -300,6 +323,9 @@ pub struct DrawList {
     /// Leaves in the frustum behind that horizon, drawn as their coarsest
     /// hidden ancestor instead of being meshed.
     pub behind_horizon: usize,
+    /// Leaves in the frustum under the opaque sea ([`OpaqueSea`]), drawn
+    /// as their coarsest ancestor under it too.
+    pub under_sea: usize,
 }
 
 /// CPU time per stage, milliseconds, for the last frame (meshing: summed
@@ -345,6 +371,8 @@ pub struct StreamFigures {
     /// Leaves behind the terrain's horizon, drawn coarse
     /// ([`DrawList::behind_horizon`]).
     pub behind_horizon: usize,
+    /// Leaves under the opaque sea, drawn coarse ([`DrawList::under_sea`]).
+    pub under_sea: usize,
     /// Largest LOD difference between neighbouring leaves.
     pub max_neighbor_lod_diff: u8,
     /// CPU time per stage.
@@ -378,6 +406,10 @@ pub struct Streamer<S, H> {
     frame: u64,
     options: DrawOptions,
     eye: Camera,
+    /// The sea the renderer draws, if any.
+    sea: Option<OpaqueSea>,
+    /// Columns known to lie under that sea, or not.
+    under_sea: HashMap<ChunkColumn, bool>,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -433,6 +465,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             frame: 0,
             options: DrawOptions::default(),
             eye: camera,
+            sea: None,
+            under_sea: HashMap::new(),
         };
         streamer.mesh_roots(upload)?;
         Ok(streamer)
@@ -476,6 +510,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn draw_options(&self) -> DrawOptions {
         self.options
+    }
+
+    /// Tells the streamer the sea the renderer draws over the sea bed
+    /// (`None`: no sea, every leaf is drawn in detail), from the next
+    /// update. See [`OpaqueSea`].
+    pub fn set_opaque_sea(&mut self, sea: Option<OpaqueSea>) {
+        if self.sea != sea {
+            self.sea = sea;
+            self.under_sea.clear();
+        }
     }
 
     /// The voxels streamed.
@@ -525,6 +569,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn set_voxels(&mut self, voxels: Arc<S>, dirty: &[ChunkKey]) -> Result<(), StreamError> {
         self.generation += 1;
         self.voxels = voxels;
+        // An edit can put anything on the sea bed.
+        self.under_sea.clear();
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
         self.tree.refresh_bounds(&*self.voxels, columns.iter().copied())?;
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
@@ -617,6 +663,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         figures.stand_ins = self.draw.stand_ins;
         figures.behind_horizon = self.draw.behind_horizon;
+        figures.under_sea = self.draw.under_sea;
         figures.holes = self.draw.holes;
         figures.max_neighbor_lod_diff = self.tree.stats().max_neighbor_lod_diff;
         figures.times = self.times;
@@ -727,14 +774,27 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // where a coarse stand-in in front dips below that horizon, what
         // shows through is coarse, never a hole.
         let occluder = tree.horizon_occluder(voxels, eye);
-        let hidden = |column: ChunkColumn| {
+        let behind = |column: ChunkColumn| {
             occluder.is_some_and(|r| tree.node_bounds(column).is_some_and(|b| b.behind_horizon(eye, r)))
         };
-        let mut behind_horizon = 0;
+        // The same for leaves under an opaque sea, seen from above it.
+        let sea = self.sea.filter(|sea| eye.length() > sea.radius);
+        if self.under_sea.len() > MAX_SEA_BED_MEMO {
+            self.under_sea.clear();
+        }
+        let memo = &mut self.under_sea;
+        let mut hidden = |column: ChunkColumn| {
+            behind(column) || sea.is_some_and(|sea| under_sea(voxels, sea, memo, column, max_lod))
+        };
+        let (mut behind_horizon, mut under_the_sea) = (0, 0);
         let mut hidden_tops: HashSet<ChunkColumn> = HashSet::new();
         for &leaf in tree.visible_leaves() {
             let leaf = if hidden(leaf) {
-                behind_horizon += 1;
+                if behind(leaf) {
+                    behind_horizon += 1;
+                } else {
+                    under_the_sea += 1;
+                }
                 let mut top = leaf;
                 while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hidden(up)) {
                     top = up;
@@ -798,6 +858,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         columns.sort_unstable();
         columns.dedup();
         self.draw.behind_horizon = behind_horizon;
+        self.draw.under_sea = under_the_sea;
         self.draw.occluder_radius = occluder.unwrap_or(f64::NAN);
         let set: HashSet<ChunkColumn> = columns.iter().copied().collect();
         let mut min_radius = f64::INFINITY;
@@ -820,7 +881,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     .node_bounds(column)
                     .map(|b| b.min_radius)
                     .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                    .filter(|_| !hidden(column));
+                    .filter(|_| !behind(column));
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
@@ -966,6 +1027,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 /// the error it morphs towards and, per side, a skirt as deep as the LOD
 /// drawn across that side needs (none next to the same LOD, whose
 /// boundary vertices are shared exactly).
+/// Whether `sea` hides `column`: it or an ancestor is sea bed wholly under
+/// the sea's hiding depth ([`VoxelSource::sea_bed_below`]). Remembered in
+/// `memo`, ancestors first (a hidden parent hides its children for free).
+fn under_sea<S: VoxelSource + ?Sized>(
+    voxels: &S,
+    sea: OpaqueSea,
+    memo: &mut HashMap<ChunkColumn, bool>,
+    column: ChunkColumn,
+    max_lod: u8,
+) -> bool {
+    if let Some(&known) = memo.get(&column) {
+        return known;
+    }
+    let hidden = (column.lod < max_lod && parent(column).is_some_and(|up| under_sea(voxels, sea, memo, up, max_lod)))
+        || voxels.sea_bed_below(column, sea.radius - sea.hiding_depth).unwrap_or(false);
+    memo.insert(column, hidden);
+    hidden
+}
+
 fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,

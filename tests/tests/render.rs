@@ -13,10 +13,12 @@
 //! With no adapter at all these tests print a loud SKIPPED line and pass,
 //! unless `NEBULA_REQUIRE_ADAPTER=1` (as in CI), where they fail.
 
-use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp};
+use nebula_demo::app::{DrawOptions, MorphRule, OpaqueSea, PlanetApp};
 use nebula_demo::flight::{Flight, FlightReport, Keyframe, fly};
 use nebula_demo::gpu::DebugView;
-use nebula_demo::headless::{Picture, Shot, draw_frame, headless_gpu, render_app, report_json, shot_view, write_png};
+use nebula_demo::headless::{
+    Picture, Shot, draw_frame, headless_gpu, place_sun, prime, render_app, report_json, shot_view, write_png,
+};
 use nebula_demo::planet_settings;
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
@@ -718,5 +720,72 @@ fn culled_back_sides_change_no_pixel() {
         assert!(with_all.rgba == culled.rgba, "{name}: culling changed the picture");
         assert_eq!(culled.figures.crack_pixels, Some(0), "{name}");
         assert!((after as f64) < 0.97 * before as f64, "{name}: culling saved too little to tell: {before} → {after}");
+    }
+}
+
+/// Settles `shot` (no background: sky and sea drawn) with the streamer told
+/// `sea` (`None`: no sea, every leaf in detail), whatever the shot would
+/// choose, and draws it.
+fn settled_with_sea(name: &str, settings: &PlanetSettings, shot: &Shot, sea: Option<OpaqueSea>) -> Picture {
+    let mut app = app(settings, shot, DrawOptions::default());
+    let view = shot_view(shot).expect("view");
+    app.set_view(view);
+    place_sun(&mut app, shot).expect("a sun over the view");
+    app.streamer_mut().0.set_opaque_sea(sea);
+    prime(&mut app).expect("a first frame");
+    let mut frames = 0;
+    while frames < 8 || !app.settled() {
+        app.step();
+        frames += 1;
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let picture = draw_frame(&mut app, shot, &view).expect("drawn");
+    write_png(&folder().join(format!("{name}.png")), &picture.rgba, picture.size).expect("png written");
+    println!("{name}: {}", report_json(&picture.figures, &picture.adapter));
+    picture
+}
+
+/// Drawing the sea bed the sea hides as coarse stand-ins (`OpaqueSea`)
+/// changes no pixel: over the deep sea 4 km up (where it draws far fewer
+/// triangles), and 150 m over shallow water off a coast (a place from a fixed seed
+/// where the sea bed is 3–12 m down, so it shows through the water). And
+/// the check can fail: the same stand-ins with no sea drawn over them
+/// change the deep view.
+#[test]
+fn the_sea_hides_only_what_changes_no_pixel() {
+    if !adapter_or_skip("sea") {
+        return;
+    }
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let radius = settings.radius;
+    let opaque = OpaqueSea { radius, hiding_depth: nebula_demo::gpu::sea_hiding_depth(radius) };
+    let mut rng = Rng(0x5EA);
+    let shallow = loop {
+        let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.6, 0.6)).normalize();
+        if (-12.0..-3.0).contains(&planet.height_at(dir)) {
+            break dir;
+        }
+    };
+    let deep = DVec3::new(4410030.3170, 4409605.7733, 1322945.4135).normalize();
+    for (name, dir, altitude, pitch) in [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)] {
+        let (eye, look) = pose(&settings, dir, altitude, dir.cross(DVec3::Z), pitch);
+        let shot = Shot { background: None, sun: Some((50.0, 30.0)), ..shot(eye, look, 60.0) };
+        let detailed = settled_with_sea(&format!("sea-{name}-detailed"), &settings, &shot, None);
+        let coarse = settled_with_sea(&format!("sea-{name}-coarse"), &settings, &shot, Some(opaque));
+        let (before, after) = (detailed.figures.frame.triangles, coarse.figures.frame.triangles);
+        println!("{name}: {before} triangles in detail, {after} with the hidden sea bed coarse");
+        assert!(detailed.rgba == coarse.rgba, "{name}: the coarse sea bed changed the picture");
+        assert!(coarse.figures.frame.under_sea > 0, "{name}: nothing under the sea");
+        if name == "deep" {
+            assert!((after as f64) < 0.8 * before as f64, "{name}: too little saved to tell: {before} → {after}");
+            // The same stand-ins where no sea is drawn over them show.
+            let bare = Shot { background: Some(SENTINEL), ..shot };
+            let detailed = settled_with_sea("sea-deep-bare-detailed", &settings, &bare, None);
+            let coarse = settled_with_sea("sea-deep-bare-coarse", &settings, &bare, Some(opaque));
+            let changed = detailed.rgba.chunks(4).zip(coarse.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+            println!("without the sea drawn, the coarse sea bed changes {changed} pixels");
+            assert!(changed > 1000, "the coarse sea bed should show without the sea: {changed} pixels changed");
+        }
     }
 }
