@@ -65,6 +65,19 @@
 //! proven: a steeper spot than any sampled could exceed it. The test
 //! `geometric_error_bounds_the_voxel_tops` checks it against the voxels of
 //! places unrelated to the samples.
+//!
+//! # Surface bounds
+//!
+//! A column's bounds ([`VoxelSource::surface_bounds`]) hold H over its
+//! whole patch. S times half the patch is tight for a small patch and
+//! hopeless for a large one (±4.4 km at LOD 9 on an Earth, where the
+//! terrain varies by hundreds of metres), so the bounds come from the
+//! noise instead: each sum's range over the ball the patch lies in
+//! ([`Fractal::range_near`]: every octave's value at the centre, give or
+//! take its steepest change over the radius), through `combine`, which
+//! rises with each sum. Five samples and S narrow that where they can (the
+//! finest LODs). Under the sea and the snow line every column is sea bed,
+//! which [`SurfaceBounds::sea_bed_only`] reports.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
