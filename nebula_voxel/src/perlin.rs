@@ -418,33 +418,122 @@ impl Fractal {
     /// The sums at `points` into `out` (the shorter length of the two;
     /// the rest of the longer is left alone), each bit for bit what
     /// [`Self::get`] gives: octave by octave over all points, each octave
-    /// through one [`Cell`].
+    /// through one [`Cell`]. (The planet steps its own batches,
+    /// [`Self::step`]; this is the whole sum, for tests.)
+    #[cfg(test)]
     pub fn get_many(&self, points: &[[f64; 3]], out: &mut [f64]) {
         let n = points.len().min(out.len());
-        let out = &mut out[..n];
-        out.fill(0.0);
-        let mut points = points[..n].to_vec();
-        let mut weights = vec![1.0; n];
-        let mut attenuation = self.first_attenuation();
-        for source in &self.sources {
-            let mut cell = Cell::default();
-            let mut k = 0;
-            while k < n {
-                let signals = if k + 1 < n {
-                    source.get2_in([points[k], points[k + 1]], &mut cell)
-                } else {
-                    [source.get_in(points[k], &mut cell), 0.0]
-                };
-                for (lane, signal) in signals.into_iter().enumerate().take(n - k) {
-                    let at = k + lane;
-                    out[at] += self.term(signal, &mut weights[at]) * attenuation;
-                    points[at] = points[at].map(|c| c * self.lacunarity);
-                }
-                k += 2;
-            }
-            attenuation *= self.persistence;
+        let mut batch = self.begin(&points[..n]);
+        let all: Vec<usize> = (0..n).collect();
+        while !batch.done(self) {
+            self.step(&mut batch, &all);
         }
-        out.iter_mut().for_each(|sum| *sum = self.finish(*sum));
+        for (k, sum) in out[..n].iter_mut().enumerate() {
+            *sum = self.bounds(&batch, k).0;
+        }
+    }
+
+    /// The octaves summed.
+    #[must_use]
+    pub fn octaves(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// A sum over `points` with no octave in yet: [`Self::step`] adds them
+    /// one at a time, for the points still wanted, and [`Self::bounds`]
+    /// says how far each sum can still go.
+    #[must_use]
+    pub fn begin(&self, points: &[[f64; 3]]) -> FractalBatch {
+        FractalBatch {
+            points: points.to_vec(),
+            sums: vec![0.0; points.len()],
+            weights: vec![1.0; points.len()],
+            octave: 0,
+            attenuation: self.first_attenuation(),
+        }
+    }
+
+    /// Adds the next octave to the sums of the points `active` (indices
+    /// into the batch, ascending); the others are left as they are and
+    /// must not be stepped again. Each point's arithmetic is
+    /// [`Self::get`]'s, so a point stepped through every octave ends bit
+    /// for bit where `get` does.
+    pub fn step(&self, batch: &mut FractalBatch, active: &[usize]) {
+        let Some(source) = self.sources.get(batch.octave) else { return };
+        let mut cell = Cell::default();
+        for pair in active.chunks(2) {
+            let signals = match *pair {
+                [a, b] => source.get2_in([batch.points[a], batch.points[b]], &mut cell),
+                [a] => [source.get_in(batch.points[a], &mut cell), 0.0],
+                _ => unreachable!("chunks(2) gives one or two"),
+            };
+            for (&at, signal) in pair.iter().zip(signals) {
+                batch.sums[at] += self.term(signal, &mut batch.weights[at]) * batch.attenuation;
+                batch.points[at] = batch.points[at].map(|c| c * self.lacunarity);
+            }
+        }
+        batch.attenuation *= self.persistence;
+        batch.octave += 1;
+    }
+
+    /// How far the octaves after the first `octaves` can move an fBm sum
+    /// at most, either way (0 for ridged sums, which depend on the point):
+    /// for deciding when bounds are worth a look.
+    #[must_use]
+    pub fn fbm_rest(&self, octaves: usize) -> f64 {
+        match self.kind {
+            FractalKind::Fbm => {
+                let left = self.sources.len().saturating_sub(octaves) as i32;
+                let attenuation = self.first_attenuation() * self.persistence.powi(octaves as i32);
+                attenuation * (1.0 - self.persistence.powi(left)) / (1.0 - self.persistence) * self.scale_factor
+            }
+            FractalKind::Ridged => 0.0,
+        }
+    }
+
+    /// Bounds `(low, high)` of point `k`'s finished sum, from the octaves
+    /// in so far: the remaining fBm octaves add at most their weights
+    /// either way; a ridged octave's signal is at most the weight the one
+    /// before left, which halves it, so the rest add between 0 and twice
+    /// the current weight. Equal bounds, [`Self::get`]'s value, once every
+    /// octave is in.
+    #[must_use]
+    pub fn bounds(&self, batch: &FractalBatch, k: usize) -> (f64, f64) {
+        let sum = batch.sums[k];
+        if batch.done(self) {
+            let value = self.finish(sum);
+            return (value, value);
+        }
+        match self.kind {
+            FractalKind::Fbm => {
+                let left = (self.sources.len() - batch.octave) as i32;
+                let rest = batch.attenuation * (1.0 - self.persistence.powi(left)) / (1.0 - self.persistence);
+                (self.finish(sum - rest), self.finish(sum + rest))
+            }
+            FractalKind::Ridged => (self.finish(sum), self.finish(sum + 2.0 * batch.weights[k])),
+        }
+    }
+}
+
+/// A [`Fractal`] sum in progress over many points, octave by octave.
+#[derive(Clone, Debug)]
+pub struct FractalBatch {
+    /// Each point, scaled to the next octave's frequency.
+    points: Vec<[f64; 3]>,
+    sums: Vec<f64>,
+    /// The ridged octaves' weights carried to the next octave.
+    weights: Vec<f64>,
+    /// The next octave.
+    octave: usize,
+    /// The next octave's weight.
+    attenuation: f64,
+}
+
+impl FractalBatch {
+    /// Whether every octave of `fractal` is in.
+    #[must_use]
+    pub fn done(&self, fractal: &Fractal) -> bool {
+        self.octave >= fractal.sources.len()
     }
 }
 
@@ -590,6 +679,45 @@ mod tests {
             println!("mean widths {widths:?}");
             assert!(widths.windows(2).all(|w| w[0] < w[1]), "{widths:?}");
             assert!(widths[0] < 0.05, "{widths:?}");
+        }
+    }
+
+    /// At every octave, the bounds of a sum in progress hold its finished
+    /// value, and narrow to it; points left out of a step keep their sums.
+    #[test]
+    fn bounds_in_progress_hold_the_finished_sums() {
+        let fractals = [Fractal::fbm(5, 16, 0.45, 2.0), Fractal::ridged(6, 15, 2.0), Fractal::fbm(7, 8, 0.5, 2.1)];
+        let mut state = 9_u64;
+        let points: Vec<[f64; 3]> =
+            (0..300).map(|_| [0.0; 3].map(|_: f64| (nebula_math::unit_random(&mut state) - 0.5) * 50.0)).collect();
+        for fractal in &fractals {
+            let finished: Vec<f64> = points.iter().map(|&p| fractal.get(p)).collect();
+            let mut batch = fractal.begin(&points);
+            let mut active: Vec<usize> = (0..points.len()).collect();
+            let mut widths = Vec::new();
+            while !batch.done(fractal) {
+                let mut width = 0.0;
+                for &k in &active {
+                    let (low, high) = fractal.bounds(&batch, k);
+                    assert!(low <= finished[k] && finished[k] <= high, "{} outside [{low}, {high}]", finished[k]);
+                    width += high - low;
+                }
+                widths.push(width / active.len() as f64);
+                fractal.step(&mut batch, &active);
+                // Drop every third point for a while: the rest go on alone.
+                if batch.octave == 3 {
+                    let (kept, left): (Vec<usize>, Vec<usize>) = active.iter().partition(|&&k| k % 3 != 0);
+                    for k in left {
+                        let (low, high) = fractal.bounds(&batch, k);
+                        assert!(low <= finished[k] && finished[k] <= high);
+                    }
+                    active = kept;
+                }
+            }
+            for &k in &active {
+                assert_eq!(fractal.bounds(&batch, k), (finished[k], finished[k]), "not get's value");
+            }
+            assert!(widths.windows(2).all(|w| w[1] <= w[0] + 1e-12), "{widths:?}");
         }
     }
 
