@@ -190,6 +190,9 @@ fn vs_sky(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
 const SCALE_HEIGHT: f32 = 0.0013;
 const VISIBILITY: f32 = 0.008;
 const TOP: f32 = 12.0;
+// Under water, light falls by e over this many of the water's extinction
+// lengths (planet.w): 24 m on Earth.
+const UNDERWATER_CLARITY: f32 = 8.0;
 
 fn sky_colour(dir: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
     let sun = frame.sun.xyz;
@@ -229,6 +232,24 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
         let p = frame.inv_view_proj * vec4<f32>(ndc, depth, 1.0);
         terrain = length(p.xyz / p.w);
     }
+    // Under the sea: the ray runs through water until it meets the
+    // terrain or leaves through the surface (the sea sphere's far root),
+    // and the water dims and tints what lies at its end: murk from the
+    // water's extinction (`UNDERWATER_CLARITY` times longer than the
+    // shallows' from above, so a diver sees tens of metres), lit by the
+    // sun's height; up through the surface, the sky.
+    if (height < 0.0) {
+        let exit = -b + sqrt(max(b * b - c, 0.0));
+        let path = min(terrain, exit);
+        let murk = 1.0 - exp(-path / (UNDERWATER_CLARITY * frame.planet.w));
+        let lit = 0.12 + 0.88 * smoothstep(-0.1, 0.4, dot(frame.sun.xyz, up));
+        let water = vec3<f32>(0.015, 0.11, 0.15) * lit;
+        if (terrain < exit) {
+            return vec4<f32>(encode(water) * murk, murk);
+        }
+        let window = sky_colour(dir, up) * 0.7;
+        return vec4<f32>(encode(mix(window, water, murk)), 1.0);
+    }
     // The sea: over sea bed, where the ray meets the sea-level sphere (or
     // at the sea bed itself, where a coarse LOD drew it above); and where
     // the ray meets that sphere with no terrain drawn. Never over land, even
@@ -240,7 +261,6 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     if (height > 0.0 && sea_disc > 0.0 && -b - sqrt(sea_disc) > 0.0) {
         sphere = -b - sqrt(sea_disc);
     }
-    // (From under the sea, the surface is not drawn: the bed shows as it is.)
     if (sea_bed && height > 0.0) {
         sea = min(sphere, terrain);
     } else if (depth == 0.0 && sphere < 1.0e38) {

@@ -789,3 +789,60 @@ fn the_sea_hides_only_what_changes_no_pixel() {
         }
     }
 }
+
+/// Under the sea the view is water: 3 m under the surface over a sea bed
+/// 6–14 m down (a place from a fixed seed), the top of the picture is dim
+/// blue-green murk, where 3 m above the same place it is the sky; the sea
+/// bed below shows through the water, darker with distance.
+#[test]
+fn under_the_sea_the_view_is_water() {
+    if !adapter_or_skip("under water") {
+        return;
+    }
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let mut rng = Rng(0xD1FE);
+    let dir = loop {
+        let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.6, 0.6)).normalize();
+        if (-14.0..-6.0).contains(&planet.height_at(dir)) {
+            break dir;
+        }
+    };
+    let heading = dir.cross(DVec3::Z).normalize();
+    let pitch = 20f64.to_radians();
+    let (width, height) = SIZE;
+    // Mean colour of a band of rows.
+    let mean = |picture: &Picture, rows: std::ops::Range<u32>| -> [f64; 3] {
+        let count = f64::from(rows.len() as u32 * width);
+        let mut sum = [0.0; 3];
+        for y in rows {
+            for x in 0..width {
+                let i = ((y * width + x) * 4) as usize;
+                for (c, total) in sum.iter_mut().enumerate() {
+                    *total += f64::from(picture.rgba[i + c]);
+                }
+            }
+        }
+        sum.map(|s| s / count)
+    };
+    let picture = |name: &str, offset: f64| {
+        let eye = dir * (settings.radius + offset);
+        let look = eye + (heading * pitch.cos() - dir * pitch.sin()) * 100.0;
+        let shot = Shot { background: None, sun: Some((50.0, 30.0)), ..shot(eye, look, 60.0) };
+        settled(name, &settings, &shot, DrawOptions::default())
+    };
+    let (under, above) = (picture("under-water", -3.0), picture("above-water", 3.0));
+    let (under_top, above_top) = (mean(&under, 0..height / 4), mean(&above, 0..height / 4));
+    let under_bottom = mean(&under, height * 3 / 4..height);
+    println!("top rows under water {under_top:.0?}, above {above_top:.0?}; bottom rows under water {under_bottom:.0?}");
+    let brightness = |c: [f64; 3]| c.iter().sum::<f64>();
+    assert!(
+        under_top[1] > under_top[0] + 20.0 && under_top[2] > under_top[0] + 20.0,
+        "no blue-green water: {under_top:?}"
+    );
+    assert!(
+        brightness(under_top) < 0.7 * brightness(above_top),
+        "the sky shows under water: {under_top:?} vs {above_top:?}"
+    );
+    assert!(under_bottom != under_top, "the sea bed does not show: {under_bottom:?}");
+}
