@@ -39,15 +39,16 @@ impl NodeBounds {
         let direction = |a: f64, b: f64| sphere.direction(column.face, i0 + a * size, j0 + b * size);
         let center_direction = direction(0.5, 0.5);
         let (mut min, mut max) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        let mut angular_radius = 0.0_f64;
-        let mut spacing = 0.0_f64;
+        // Largest angles as smallest cosines: one `acos` each at the end.
+        let mut radius_cosine = 1.0_f64;
+        let mut spacing_cosine = 1.0_f64;
         for a in 0..3 {
             for b in 0..3 {
                 let d = direction(f64::from(a) * 0.5, f64::from(b) * 0.5);
-                angular_radius = angular_radius.max(center_direction.angle_between(d));
+                radius_cosine = radius_cosine.min(center_direction.dot(d));
                 if a < 2 && b < 2 {
                     let diagonal = direction(f64::from(a + 1) * 0.5, f64::from(b + 1) * 0.5);
-                    spacing = spacing.max(d.angle_between(diagonal));
+                    spacing_cosine = spacing_cosine.min(d.dot(diagonal));
                 }
                 for radius in [surface.min_radius, surface.max_radius] {
                     min = min.min(d * radius);
@@ -55,6 +56,8 @@ impl NodeBounds {
                 }
             }
         }
+        let angular_radius = radius_cosine.clamp(-1.0, 1.0).acos();
+        let spacing = spacing_cosine.clamp(-1.0, 1.0).acos();
         let bulge = surface.max_radius * (1.0 - (spacing / 2.0).cos());
         Self {
             min: min - DVec3::splat(bulge),

@@ -450,6 +450,7 @@ impl Fractal {
             weights: vec![1.0; points.len()],
             octave: 0,
             attenuation: self.first_attenuation(),
+            rest: self.rest(0),
         }
     }
 
@@ -474,6 +475,7 @@ impl Fractal {
         }
         batch.attenuation *= self.persistence;
         batch.octave += 1;
+        batch.rest = self.rest(batch.octave);
     }
 
     /// How far the octaves after the first `octaves` can move an fBm sum
@@ -481,11 +483,17 @@ impl Fractal {
     /// for deciding when bounds are worth a look.
     #[must_use]
     pub fn fbm_rest(&self, octaves: usize) -> f64 {
+        self.rest(octaves) * self.scale_factor
+    }
+
+    /// The weights of the octaves after the first `octaves`, summed (0 for
+    /// ridged sums): how far they can move an fBm sum before scaling.
+    fn rest(&self, octaves: usize) -> f64 {
         match self.kind {
             FractalKind::Fbm => {
                 let left = self.sources.len().saturating_sub(octaves) as i32;
                 let attenuation = self.first_attenuation() * self.persistence.powi(octaves as i32);
-                attenuation * (1.0 - self.persistence.powi(left)) / (1.0 - self.persistence) * self.scale_factor
+                attenuation * (1.0 - self.persistence.powi(left)) / (1.0 - self.persistence)
             }
             FractalKind::Ridged => 0.0,
         }
@@ -505,11 +513,7 @@ impl Fractal {
             return (value, value);
         }
         match self.kind {
-            FractalKind::Fbm => {
-                let left = (self.sources.len() - batch.octave) as i32;
-                let rest = batch.attenuation * (1.0 - self.persistence.powi(left)) / (1.0 - self.persistence);
-                (self.finish(sum - rest), self.finish(sum + rest))
-            }
+            FractalKind::Fbm => (self.finish(sum - batch.rest), self.finish(sum + batch.rest)),
             FractalKind::Ridged => (self.finish(sum), self.finish(sum + 2.0 * batch.weights[k])),
         }
     }
@@ -527,6 +531,8 @@ pub struct FractalBatch {
     octave: usize,
     /// The next octave's weight.
     attenuation: f64,
+    /// The weights of the octaves still to come, summed (fBm).
+    rest: f64,
 }
 
 impl FractalBatch {

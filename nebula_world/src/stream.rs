@@ -40,7 +40,11 @@
 //! least recently used freed first. Edits ([`Streamer::set_voxels`]) keep
 //! the old mesh of a chunk on screen until its new one is uploaded.
 
-use std::collections::{BinaryHeap, HashMap, HashSet};
+use std::collections::BinaryHeap;
+
+// Fx hashing for the maps keyed by chunk: SipHash was a fifth of the main
+// thread's time in a streaming view (keys are not attacker controlled).
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex};
@@ -148,7 +152,7 @@ struct CachedColumn<H> {
 impl<H: MeshHandle> CachedColumn<H> {
     fn new<S: VoxelSource + ?Sized>(voxels: &S, column: ChunkColumn, frame: u64) -> Self {
         let layers = voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
-        Self { layers, chunks: HashMap::new(), last_used: frame, walls: WallPlanes::of(voxels.layout(), column) }
+        Self { layers, chunks: HashMap::default(), last_used: frame, walls: WallPlanes::of(voxels.layout(), column) }
     }
 
     fn ready(&self) -> bool {
@@ -443,7 +447,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 pool: Arc::new(pool),
                 state: Arc::new(Mutex::new(JobState {
                     queue: BinaryHeap::new(),
-                    running: HashSet::new(),
+                    running: HashSet::default(),
                     voxels: None,
                 })),
                 workers: Arc::default(),
@@ -452,13 +456,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 receiver: Mutex::new(receiver),
             },
             cache: MeshCache {
-                columns: HashMap::new(),
+                columns: HashMap::default(),
                 keep_cpu: false,
                 free_after_frames: 300,
                 max_chunks: 12_000,
                 max_bytes: MeshCache::<H>::default_max_bytes(),
-                stale: HashMap::new(),
-                required: HashMap::new(),
+                stale: HashMap::default(),
+                required: HashMap::default(),
             },
             draw: DrawList::default(),
             times: StageTimes::default(),
@@ -466,7 +470,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             options: DrawOptions::default(),
             eye: camera,
             sea: None,
-            under_sea: HashMap::new(),
+            under_sea: HashMap::default(),
         };
         streamer.mesh_roots(upload)?;
         Ok(streamer)
@@ -765,7 +769,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let max_lod = layout.max_lod();
         let eye = self.eye.position;
         let mut drawn: Vec<ChunkColumn> = Vec::new();
-        let mut ancestors: HashSet<ChunkColumn> = HashSet::new();
+        let mut ancestors: HashSet<ChunkColumn> = HashSet::default();
         let mut wanted: Vec<ChunkColumn> = Vec::new();
         let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
         // Leaves behind the terrain's horizon are drawn as their coarsest
@@ -787,7 +791,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             behind(column) || sea.is_some_and(|sea| under_sea(voxels, sea, memo, column, max_lod))
         };
         let (mut behind_horizon, mut under_the_sea) = (0, 0);
-        let mut hidden_tops: HashSet<ChunkColumn> = HashSet::new();
+        let mut hidden_tops: HashSet<ChunkColumn> = HashSet::default();
         for &leaf in tree.visible_leaves() {
             let leaf = if hidden(leaf) {
                 if behind(leaf) {
@@ -897,7 +901,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // the largest projected voxel first.
         let k = tree.settings().screen_space().map_or(1.0, |s| s.k());
         let mut jobs = Vec::new();
-        let mut seen = HashSet::new();
+        let mut seen = HashSet::default();
         for column in wanted {
             if !seen.insert(column) {
                 continue;
