@@ -442,9 +442,18 @@ impl ProceduralPlanet {
             if !last && (round < first_look || (round - first_look) % 2 == 1) {
                 continue;
             }
+            let continents_spread = voxel_m / (0.6 * self.settings.amplitude);
             open.retain(|&k| {
-                let [(c_low, c_high), (r_low, r_high), (h_low, h_high)] =
-                    [0, 1, 2].map(|f| fractals[f].bounds(&batches[f], k));
+                let (c_low, c_high) = self.continents.bounds(&batches[0], k);
+                // The continents alone spread H by 0.6·amplitude per unit
+                // (`combine`, short of its clamp): a spread of a voxel or
+                // more holds a voxel threshold, so such a column stays open
+                // without the full test (staying open is always safe).
+                if !last && c_high - c_low >= continents_spread {
+                    return true;
+                }
+                let (r_low, r_high) = self.ridges.bounds(&batches[1], k);
+                let (h_low, h_high) = self.hills.bounds(&batches[2], k);
                 let (low, high) = (self.combine(c_low, r_low, h_low), self.combine(c_high, r_high, h_high));
                 if !last && self.undecided(low, high, directions[k].z, span) {
                     return true;

@@ -414,6 +414,9 @@ pub struct Streamer<S, H> {
     sea: Option<OpaqueSea>,
     /// Columns known to lie under that sea, or not.
     under_sea: HashMap<ChunkColumn, bool>,
+    /// The camera the tree's visible leaves were last picked for, while
+    /// the tree has not changed since.
+    culled_for: Option<Camera>,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -471,6 +474,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             eye: camera,
             sea: None,
             under_sea: HashMap::default(),
+            culled_for: None,
         };
         streamer.mesh_roots(upload)?;
         Ok(streamer)
@@ -552,7 +556,19 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.frame += 1;
         self.eye = camera;
         let start = Instant::now();
-        if let Err(error) = self.tree.update(&*self.voxels, &camera).and_then(|_| self.tree.cull(&camera)) {
+        // The leaves in view depend on the camera and the tree alone: a
+        // still camera over a settled tree need not walk it again.
+        let culled = self.tree.update(&*self.voxels, &camera).and_then(|changes| {
+            let same_tree =
+                changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty();
+            if !(same_tree && self.culled_for == Some(camera)) {
+                self.culled_for = None;
+                self.tree.cull(&camera)?;
+                self.culled_for = Some(camera);
+            }
+            Ok(())
+        });
+        if let Err(error) = culled {
             eprintln!("nebula: LOD update failed, keeping the last selection: {error}");
         }
         self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -573,8 +589,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn set_voxels(&mut self, voxels: Arc<S>, dirty: &[ChunkKey]) -> Result<(), StreamError> {
         self.generation += 1;
         self.voxels = voxels;
-        // An edit can put anything on the sea bed.
+        // An edit can put anything on the sea bed, and moves bounds.
         self.under_sea.clear();
+        self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
         self.tree.refresh_bounds(&*self.voxels, columns.iter().copied())?;
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
