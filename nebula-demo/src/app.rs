@@ -61,6 +61,15 @@ fn upload(gpu: &Gpu, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
     gpu.upload(mesh, key.lod, id)
 }
 
+/// Whether `eye` is in `planet`'s sea: under sea level over a column
+/// whose (unedited) ground lies under the sea too, not in a pit dug below
+/// sea level under land.
+#[must_use]
+pub fn eye_in_sea(planet: &ProceduralPlanet, eye: DVec3) -> bool {
+    let sea_level = nebula_voxel::VoxelSource::layout(planet).sphere().radius();
+    eye.length() < sea_level && eye.length() > 0.0 && planet.height_at(eye.normalize()) < 0.0
+}
+
 impl PlanetApp {
     /// A world for `planet` with LOD `settings`, drawing through `gpu`. The
     /// six face roots are meshed before it returns, so every frame has
@@ -231,6 +240,7 @@ impl PlanetApp {
             atmosphere: background
                 .is_none()
                 .then(|| nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius()),
+            eye_in_sea: eye_in_sea(self.streamer().voxels().base(), view.camera.position),
         };
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
             let stream = world.resource::<Stream>();
@@ -301,4 +311,38 @@ fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<GpuRes>) 
 #[must_use]
 pub fn camera(position: DVec3, forward: DVec3, up: DVec3, aspect: f64) -> Camera {
     Camera { position, forward, up, aspect }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nebula_voxel::PlanetSettings;
+
+    /// Under sea level over the sea is in the sea; the same depth under land
+    /// (a pit dug below sea level) is not, nor is anywhere above sea level.
+    #[test]
+    fn the_eye_is_in_the_sea_only_over_sea_bed() {
+        let planet = ProceduralPlanet::new(PlanetSettings::small(7)).expect("valid planet");
+        let radius = planet.settings().radius;
+        let mut state = 3_u64;
+        let (mut sea, mut land) = (0, 0);
+        for _ in 0..400 {
+            let d = DVec3::new(
+                nebula_math::unit_random(&mut state) - 0.5,
+                nebula_math::unit_random(&mut state) - 0.5,
+                nebula_math::unit_random(&mut state) - 0.5,
+            )
+            .normalize();
+            let under = eye_in_sea(&planet, d * (radius - 2.0));
+            if planet.height_at(d) < 0.0 {
+                sea += 1;
+                assert!(under, "{d}: under the sea but not in it");
+            } else {
+                land += 1;
+                assert!(!under, "{d}: in a pit under land but in the sea");
+            }
+            assert!(!eye_in_sea(&planet, d * (radius + 2.0)), "above sea level");
+        }
+        assert!(sea > 20 && land > 20, "{sea} over sea, {land} over land");
+    }
 }

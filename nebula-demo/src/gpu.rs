@@ -58,6 +58,9 @@ struct FrameUniform {
     /// x: planet (sea level) radius, y: eye radius, z: eye altitude (both
     /// from f64), w: the water's extinction length ([`water_extinction`]).
     planet: [f32; 4],
+    /// x: 1 where the eye is in the sea (under its surface, over sea
+    /// bed), else 0.
+    sea: [f32; 4],
 }
 
 /// Metres of water that dim the sea bed seen through them by a factor e:
@@ -147,6 +150,9 @@ pub struct FrameParams {
     /// Draw the sky, sea and haze of a planet of this radius (metres) over
     /// the terrain; `None` leaves the background alone (crack checks).
     pub atmosphere: Option<f64>,
+    /// The eye is under the sea's surface over sea bed (not in a pit dug
+    /// below sea level under land): the sky pass draws it in water.
+    pub eye_in_sea: bool,
     /// Unit direction towards the sun (world).
     pub sun: Vec3,
 }
@@ -459,6 +465,7 @@ impl Gpu {
                 (frame.eye.length() - radius) as f32,
                 water_extinction(radius) as f32,
             ],
+            sea: [if frame.eye_in_sea { 1.0 } else { 0.0 }, 0.0, 0.0, 0.0],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
         if meshes.len() as u64 > self.chunk_capacity {

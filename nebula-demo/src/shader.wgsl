@@ -16,6 +16,8 @@ struct Frame {
     // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: metres
     // of water that dim what is under them by a factor e (gpu::water_extinction).
     planet: vec4<f32>,
+    // x: 1 where the eye is in the sea (gpu::FrameParams::eye_in_sea).
+    sea: vec4<f32>,
 };
 
 struct Chunk {
@@ -238,7 +240,7 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     // water's extinction (`UNDERWATER_CLARITY` times longer than the
     // shallows' from above, so a diver sees tens of metres), lit by the
     // sun's height; up through the surface, the sky.
-    if (height < 0.0) {
+    if (height < 0.0 && frame.sea.x > 0.5) {
         let exit = -b + sqrt(max(b * b - c, 0.0));
         let path = min(terrain, exit);
         let murk = 1.0 - exp(-path / (UNDERWATER_CLARITY * frame.planet.w));

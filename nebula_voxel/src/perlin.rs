@@ -275,10 +275,11 @@ const RIDGED_ATTENUATION: f64 = 2.0;
 /// of noise space, is 2.5·√3 (4.3301…), rounded up.
 ///
 /// Where it comes from: local search over the kernel's corner gradients
-/// and offsets, from thousands of random starts, converges on 2.5·√3 and
-/// never beyond (`no_gradient_steeper_than_the_bound` repeats it): the
-/// fade's steepest slope (15/8) times the gradients' reach, scaled by
-/// 2/√3. Found, not proven, like the planet's slope bound.
+/// and offsets, from 20,000 random starts (400 in
+/// `no_gradient_steeper_than_the_bound`), converges on 2.5·√3 and never
+/// beyond: at a cell's centre, along an axis, the fade's steepest slope
+/// (15/8) times a difference of 2 across the cell, scaled by 2/√3. Found,
+/// not proven, like the planet's slope bound.
 pub const PERLIN_MAX_GRADIENT: f64 = 4.3302;
 
 impl Fractal {
@@ -592,11 +593,6 @@ mod tests {
         }
     }
 
-    /// Many points at once give what one at a time gives, bit for bit:
-    /// rows of points a small step apart (as a chunk's voxel columns, so
-    /// cells are shared by runs of points), at Earth-scale offsets and at
-    /// steps from far below to far above the cell size (an odd count, so a
-    /// point is left over after the pairs).
     /// Local search from random starts over the kernel's corner
     /// gradients (each one of the 12) and offsets finds no gradient
     /// steeper than [`PERLIN_MAX_GRADIENT`], and comes within 1 % of it
@@ -727,6 +723,11 @@ mod tests {
         }
     }
 
+    /// Many points at once give what one at a time gives, bit for bit:
+    /// rows of points a small step apart (as a chunk's voxel columns, so
+    /// cells are shared by runs of points), at Earth-scale offsets and at
+    /// steps from far below to far above the cell size (an odd count, so a
+    /// point is left over after the pairs).
     #[test]
     fn batches_equal_single_points() {
         let mut state = 0x005E_ED0F_BA7C_u64;

@@ -196,9 +196,10 @@ struct Column {
     /// H in layers, or within `slack` of it.
     height: f64,
     surface: Voxel,
-    /// How far from H `height` may be, layers: 0 where every octave is in;
-    /// otherwise no voxel or material threshold of the LOD the column was
-    /// made for lies within it (`ProceduralPlanet::columns_at`).
+    /// How far from H `height` may be, layers (0 when every octave is in,
+    /// and when the bounds met early); no voxel or material threshold of
+    /// the LOD the column was made for lies within it
+    /// (`ProceduralPlanet::columns_at`).
     slack: f32,
 }
 
@@ -360,8 +361,8 @@ impl ProceduralPlanet {
     /// cells `[i − half, i + half] × [j − half, j + half]` on `face`.
     ///
     /// Every direction of the square lies within the angle to its farthest
-    /// corner or edge middle (1 % more, for the curved edges between) of
-    /// the centre's, so each noise sum lies in its range over that ball
+    /// corner or edge middle of the centre's (its edges are great-circle
+    /// arcs; 1 % more for rounding), so each noise sum lies in its range over that ball
     /// ([`Fractal::range_near`]), and H, which rises with each sum
     /// ([`Self::combine`]: the ridges and the mask are never negative),
     /// between the heights of the ranges' ends.
@@ -373,14 +374,15 @@ impl ProceduralPlanet {
     fn height_range(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> (f64, f64) {
         let sphere = self.layout.sphere();
         let centre = sphere.direction(face, i, j);
-        let mut angle = 0.0_f64;
+        // The largest angle is the smallest cosine: one `acos`, not eight.
+        let mut cosine = 1.0_f64;
         for (a, b) in
             [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0)]
         {
-            angle = angle.max(centre.angle_between(sphere.direction(face, i + a * half, j + b * half)));
+            cosine = cosine.min(centre.dot(sphere.direction(face, i + a * half, j + b * half)));
         }
-        // Chords are shorter than their angles.
-        let reach = angle * 1.01;
+        // A chord is shorter than its angle; 1 % more for rounding.
+        let reach = cosine.clamp(-1.0, 1.0).acos() * 1.01;
         let p = centre * self.noise_scale;
         let (continents_low, continents_high) = self.continents.range_near(p.to_array(), reach * self.noise_scale);
         let (ridges_low, ridges_high) = self.ridges.range_near((p * 2.0).to_array(), reach * self.noise_scale * 2.0);
@@ -607,12 +609,14 @@ impl ProceduralPlanet {
             let q = |c: i64, chunk: u32| (c - 1) / 2 - i64::from(chunk) * size + 1;
             let (qi, qj) = (q(i, parent.x), q(j, parent.y));
             let within = |q: i64| (0..padded).contains(&q);
+            if !within(qi) || !within(qj) {
+                return None;
+            }
             // Made for the parent's voxels, twice as tall: it may leave a
             // threshold of these open.
             let known = heights[(qj * padded + qi) as usize];
             let slack = f64::from(known.slack);
-            (within(qi) && within(qj) && !self.undecided_voxels(known.height - slack, known.height + slack, span))
-                .then_some(known)
+            (!self.undecided_voxels(known.height - slack, known.height + slack, span)).then_some(known)
         };
         // The padding ring and the rows next to it are the same LOD's
         // columns of the neighbouring chunks: copied when those are cached

@@ -16,10 +16,10 @@ pub struct SurfaceBounds {
     pub min_radius: f64,
     /// Radius of the top of `max_layer`, metres.
     pub max_radius: f64,
-    /// Whether every solid voxel of the column is [`Voxel::SEABED`]: the
-    /// whole column lies under the sea, so a renderer that covers the sea
-    /// bed with water covers all of it. `false` where the source cannot
-    /// tell.
+    /// Whether every solid voxel of the column, and of every finer column
+    /// under it, is [`Voxel::SEABED`]: the whole column lies under the
+    /// sea, so a renderer that covers the sea bed with water covers all of
+    /// it. `false` where the source cannot tell.
     pub sea_bed_only: bool,
 }
 
@@ -67,7 +67,9 @@ pub trait VoxelSource: Send + Sync {
     /// column: a renderer whose sea hides the sea bed under a given depth
     /// of water need not refine, mesh or draw such a column in detail.
     /// Conservative: `false` where the source cannot tell. By default, from
-    /// [`VoxelSource::surface_bounds`].
+    /// [`VoxelSource::surface_bounds`], whose radii and `sea_bed_only` must
+    /// then hold for the finer columns too (the procedural planet's bound
+    /// H over the whole patch).
     ///
     /// # Errors
     /// As [`VoxelSource::surface_bounds`].

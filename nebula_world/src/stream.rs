@@ -21,6 +21,8 @@
 //!   for each visible leaf L of the LOD tree:
 //!     L behind the terrain's horizon → L := its coarsest ancestor that is
 //!                                    hidden too (LodTree::horizon_occluder)
+//!     L under an opaque sea          → L := its coarsest ancestor under it
+//!                                    with sea bed on every side (OpaqueSea)
 //!     L's column meshed            → draw L
 //!     else its 4 children meshed   → draw them (a merge not ready yet)
 //!     else nearest meshed ancestor → draw it instead (a split not ready yet);
@@ -51,7 +53,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use nebula_lod::{Camera, LodError, LodSettings, LodTree, children, parent};
-use nebula_math::FaceDirection;
+use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
 };
@@ -288,7 +290,9 @@ impl<S> Meshing<S> {
 /// `hiding_depth` of water. Seen from above its surface, a column of sea
 /// bed wholly deeper than that is hidden, so the streamer draws it as its
 /// coarsest ancestor that is hidden too ([`VoxelSource::sea_bed_below`])
-/// instead of meshing it in detail, as it does behind the horizon.
+/// and has hidden sea bed across all four sides (so no leaf drawn in
+/// detail borders it), instead of meshing it in detail, as it does behind
+/// the horizon.
 ///
 /// Why coarse and not left out: whatever the renderer shows where nothing
 /// is drawn, a coarse chunk in its place keeps it from showing what lies
@@ -569,6 +573,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             Ok(())
         });
         if let Err(error) = culled {
+            // A failed update may have changed the tree part-way.
+            self.culled_for = None;
             eprintln!("nebula: LOD update failed, keeping the last selection: {error}");
         }
         self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -804,20 +810,33 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.under_sea.clear();
         }
         let memo = &mut self.under_sea;
-        let mut hidden = |column: ChunkColumn| {
-            behind(column) || sea.is_some_and(|sea| under_sea(voxels, sea, memo, column, max_lod))
+        // Whether `column` is hidden; when `climbing` to it as a stand-in,
+        // one under the sea must have the sea bed all round too: a coarse
+        // stand-in next to a leaf drawn in detail would lower the ground
+        // beside that leaf and bare its skirt, which takes the leaf's
+        // material (never sea bed at a coast, so no water over it).
+        let mut hidden = |column: ChunkColumn, climbing: bool| {
+            behind(column)
+                || sea.is_some_and(|sea| {
+                    under_sea(voxels, sea, memo, column, max_lod)
+                        && (!climbing
+                            || FaceEdge::ALL.iter().all(|&edge| {
+                                let across = layout.neighbor(column.chunk(0), edge).column();
+                                under_sea(voxels, sea, memo, across, max_lod)
+                            }))
+                })
         };
         let (mut behind_horizon, mut under_the_sea) = (0, 0);
         let mut hidden_tops: HashSet<ChunkColumn> = HashSet::default();
         for &leaf in tree.visible_leaves() {
-            let leaf = if hidden(leaf) {
+            let leaf = if hidden(leaf, false) {
                 if behind(leaf) {
                     behind_horizon += 1;
                 } else {
                     under_the_sea += 1;
                 }
                 let mut top = leaf;
-                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hidden(up)) {
+                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hidden(up, true)) {
                     top = up;
                 }
                 if !hidden_tops.insert(top) {
@@ -1044,10 +1063,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 }
 
-/// The draw constants of `column` when the columns in `drawn` are drawn:
-/// the error it morphs towards and, per side, a skirt as deep as the LOD
-/// drawn across that side needs (none next to the same LOD, whose
-/// boundary vertices are shared exactly).
 /// Whether `sea` hides `column`: it or an ancestor is sea bed wholly under
 /// the sea's hiding depth ([`VoxelSource::sea_bed_below`]). Remembered in
 /// `memo`, ancestors first (a hidden parent hides its children for free).
@@ -1067,6 +1082,10 @@ fn under_sea<S: VoxelSource + ?Sized>(
     hidden
 }
 
+/// The draw constants of `column` when the columns in `drawn` are drawn:
+/// the error it morphs towards and, per side, a skirt as deep as the LOD
+/// drawn across that side needs (none next to the same LOD, whose
+/// boundary vertices are shared exactly).
 fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,
