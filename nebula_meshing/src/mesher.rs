@@ -190,10 +190,14 @@ impl ChunkMesher {
         for (direction, (group, face)) in groups.iter_mut().zip(faces).enumerate() {
             let axes = FaceAxes::of(face);
             let covered = &mut self.covered_stamp[direction * PADDED_CHUNK_VOLUME..][..PADDED_CHUNK_VOLUME];
+            // The layers (along the normal) holding a quad that touches a
+            // boundary plane: the only ones whose faces strips may cover.
+            let mut boundary_layers = 0u64;
             group.retain_mut(|quad| {
                 if !axes.touches_boundary(quad) {
                     return true;
                 }
+                boundary_layers |= 1 << (quad.minimum[axes.n] - 1);
                 if canonical && axes.keeps_canonical_corners(quad, voxels) {
                     axes.for_each_face(quad, |padded| covered[PaddedChunkShape::linearize(padded) as usize] = stamp);
                     return true;
@@ -201,7 +205,7 @@ impl ChunkMesher {
                 axes.clip_to_interior(quad)
             });
             let is_covered = |index: usize| covered[index] == stamp;
-            axes.push_boundary_strips(voxels.as_slice(), &is_covered, group);
+            axes.push_boundary_strips(voxels.as_slice(), &is_covered, boundary_layers, group);
         }
         for (group, face) in groups.iter().zip(faces) {
             for quad in group {
@@ -546,20 +550,27 @@ impl FaceAxes {
     /// Pushes the faces touching a boundary plane as strips: the faces in
     /// the plane along `u`, and the others along the plane they touch
     /// (single faces where they touch two), each strip ended where the
-    /// face changes.
+    /// face changes. Only in `layers` (a bit per voxel layer along the
+    /// normal): a face touching a boundary plane belongs to a greedy quad
+    /// that does, so layers with none have nothing to strip (most of them:
+    /// this scan was a third of a chunk's meshing).
     fn push_boundary_strips(
         &self,
         voxels: &[Voxel],
         is_covered: &impl Fn(usize) -> bool,
+        layers: u64,
         quads: &mut Vec<UnorientedQuad>,
     ) {
         let edge_rows = [0, LAST - 1];
         let boundary_layer = if self.positive { LAST - 1 } else { 0 };
+        let in_layers = |layer: i32| layers & (1 << layer) != 0;
         // The faces lying in the boundary plane.
-        for v in 0..LAST {
-            self.push_runs(voxels, is_covered, [boundary_layer, 0, v], self.u, LAST, quads);
+        if in_layers(boundary_layer) {
+            for v in 0..LAST {
+                self.push_runs(voxels, is_covered, [boundary_layer, 0, v], self.u, LAST, quads);
+            }
         }
-        for layer in (0..LAST).filter(|&layer| layer != boundary_layer) {
+        for layer in (0..LAST).filter(|&layer| layer != boundary_layer && in_layers(layer)) {
             for row in edge_rows {
                 // Faces along a boundary plane across `v`, then across `u`.
                 self.push_runs(voxels, is_covered, [layer, 1, row], self.u, LAST - 2, quads);
