@@ -723,6 +723,17 @@ fn culled_back_sides_change_no_pixel() {
     }
 }
 
+/// A random direction (away from the poles) whose ground height lies in
+/// `heights`, metres.
+fn place_with_ground(planet: &ProceduralPlanet, rng: &mut Rng, heights: std::ops::Range<f64>) -> DVec3 {
+    loop {
+        let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.6, 0.6)).normalize();
+        if heights.contains(&planet.height_at(dir)) {
+            return dir;
+        }
+    }
+}
+
 /// Settles `shot` (no background: sky and sea drawn) with the streamer told
 /// `sea` (`None`: no sea, every leaf in detail), whatever the shot would
 /// choose, and draws it.
@@ -761,12 +772,7 @@ fn the_sea_hides_only_what_changes_no_pixel() {
     let radius = settings.radius;
     let opaque = OpaqueSea { radius, hiding_depth: nebula_demo::gpu::sea_hiding_depth(radius) };
     let mut rng = Rng(0x5EA);
-    let shallow = loop {
-        let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.6, 0.6)).normalize();
-        if (-12.0..-3.0).contains(&planet.height_at(dir)) {
-            break dir;
-        }
-    };
+    let shallow = place_with_ground(&planet, &mut rng, -12.0..-3.0);
     let deep = DVec3::new(4410030.3170, 4409605.7733, 1322945.4135).normalize();
     for (name, dir, altitude, pitch) in [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)] {
         let (eye, look) = pose(&settings, dir, altitude, dir.cross(DVec3::Z), pitch);
@@ -802,12 +808,7 @@ fn under_the_sea_the_view_is_water() {
     let settings = earth();
     let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
     let mut rng = Rng(0xD1FE);
-    let dir = loop {
-        let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-0.6, 0.6)).normalize();
-        if (-14.0..-6.0).contains(&planet.height_at(dir)) {
-            break dir;
-        }
-    };
+    let dir = place_with_ground(&planet, &mut rng, -14.0..-6.0);
     let heading = dir.cross(DVec3::Z).normalize();
     let pitch = 20f64.to_radians();
     let (width, height) = SIZE;
