@@ -43,14 +43,14 @@
 //! the old mesh of a chunk on screen until its new one is uploaded.
 
 use std::collections::BinaryHeap;
-
-// Fx hashing for the maps keyed by chunk: SipHash was a fifth of the main
-// thread's time in a streaming view (keys are not attacker controlled).
-use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+// Fx hashing for the maps keyed by chunk: SipHash was a fifth of the main
+// thread's time in a streaming view (keys are not attacker controlled).
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use nebula_lod::{Camera, LodError, LodSettings, LodTree, children, parent};
 use nebula_math::{FaceDirection, FaceEdge};
