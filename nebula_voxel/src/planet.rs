@@ -196,10 +196,9 @@ struct Column {
     /// H in layers, or within `slack` of it.
     height: f64,
     surface: Voxel,
-    /// How far from H `height` may be, layers (0 when every octave is in,
-    /// and when the bounds met early); no voxel or material threshold of
-    /// the LOD the column was made for lies within it
-    /// (`ProceduralPlanet::columns_at`).
+    /// How far from H `height` may be, layers: 0 exactly when every octave
+    /// is in; otherwise no voxel or material threshold of the LOD the
+    /// column was made for lies within it (`ProceduralPlanet::columns_at`).
     slack: f32,
 }
 
@@ -461,8 +460,13 @@ impl ProceduralPlanet {
                     return true;
                 }
                 let height = if last { low } else { 0.5 * (low + high) };
-                // Rounded up (f32), so the slack still holds H.
-                let slack = (0.5 * (high - low) / self.layer_height * (1.0 + 1e-6)) as f32;
+                // Rounded up (f32), so the slack still holds H; never 0
+                // unless every octave is in (0 means exact).
+                let slack = if last {
+                    0.0
+                } else {
+                    ((0.5 * (high - low) / self.layer_height * (1.0 + 1e-6)) as f32).max(f32::MIN_POSITIVE)
+                };
                 columns[k] = Column { slack, ..self.sample(directions[k], height) };
                 false
             });
