@@ -224,11 +224,24 @@ fn pace(started: Instant) {
 }
 
 /// Runs at least `shot.frames` frames and until the view has settled (no
-/// stand-ins, no jobs), then draws, reads back and counts cracks.
+/// stand-ins, no jobs), then draws, reads back and counts cracks:
+/// [`prepare_shot`] then [`settle_and_draw`].
 ///
 /// # Errors
-/// Read-back failures, or no settled view in 10 minutes.
+/// As those two.
 pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
+    let view = prepare_shot(app, shot)?;
+    settle_and_draw(app, shot, &view)
+}
+
+/// Sets `app` up for `shot`: its view and sun, CPU meshes kept for the
+/// crack check when a background is given, and the sea drawn (so the sea
+/// bed it hides is left coarse) when not. Returns the view.
+///
+/// # Errors
+/// A bad view or sun, an image too large for the adapter, or a camera
+/// inside the planet.
+pub fn prepare_shot(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<View> {
     let view = shot_view(shot)?;
     app.gpu().check_image_size(shot.size)?;
     app.set_view(view);
@@ -242,6 +255,16 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
     );
     app.keep_cpu_meshes(shot.background.is_some());
     app.set_sea_drawn(shot.background.is_none() && shot.view == DebugView::Shaded);
+    Ok(view)
+}
+
+/// Steps `app` at [`FRAME_RATE`] for at least `shot.frames` frames and
+/// until it has settled, then draws `view` ([`draw_frame`]), with the
+/// times to the first complete frame and to settled.
+///
+/// # Errors
+/// Read-back failures, or no settled view in 10 minutes.
+pub fn settle_and_draw(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
     let started = Instant::now();
     let first_frame_ms = prime(app)?;
     let mut frames = 0;
@@ -256,7 +279,7 @@ pub fn render_app(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<Picture> {
         pace(step_started);
     }
     let settled_ms = started.elapsed().as_secs_f64() * 1e3;
-    let mut picture = draw_frame(app, shot, &view)?;
+    let mut picture = draw_frame(app, shot, view)?;
     picture.figures.frames = frames;
     picture.figures.first_frame_ms = first_frame_ms;
     picture.figures.settled_ms = settled_ms;

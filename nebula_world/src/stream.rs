@@ -810,33 +810,34 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.under_sea.clear();
         }
         let memo = &mut self.under_sea;
-        // Whether `column` is hidden; when `climbing` to it as a stand-in,
-        // one under the sea must have the sea bed all round too: a coarse
+        // Whether the sea hides `column`; when `climbing` to it as a
+        // stand-in, it must have the sea bed all round too: a coarse
         // stand-in next to a leaf drawn in detail would lower the ground
         // beside that leaf and bare its skirt, which takes the leaf's
         // material (never sea bed at a coast, so no water over it).
-        let mut hidden = |column: ChunkColumn, climbing: bool| {
-            behind(column)
-                || sea.is_some_and(|sea| {
-                    under_sea(voxels, sea, memo, column, max_lod)
-                        && (!climbing
-                            || FaceEdge::ALL.iter().all(|&edge| {
-                                let across = layout.neighbor(column.chunk(0), edge).column();
-                                under_sea(voxels, sea, memo, across, max_lod)
-                            }))
-                })
+        let mut sea_hides = |column: ChunkColumn, climbing: bool| {
+            sea.is_some_and(|sea| {
+                under_sea(voxels, sea, memo, column, max_lod)
+                    && (!climbing
+                        || FaceEdge::ALL.iter().all(|&edge| {
+                            let across = layout.neighbor(column.chunk(0), edge).column();
+                            under_sea(voxels, sea, memo, across, max_lod)
+                        }))
+            })
         };
         let (mut behind_horizon, mut under_the_sea) = (0, 0);
         let mut hidden_tops: HashSet<ChunkColumn> = HashSet::default();
         for &leaf in tree.visible_leaves() {
-            let leaf = if hidden(leaf, false) {
-                if behind(leaf) {
+            let by_horizon = behind(leaf);
+            let leaf = if by_horizon || sea_hides(leaf, false) {
+                if by_horizon {
                     behind_horizon += 1;
                 } else {
                     under_the_sea += 1;
                 }
                 let mut top = leaf;
-                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hidden(up, true)) {
+                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && (behind(up) || sea_hides(up, true)))
+                {
                     top = up;
                 }
                 if !hidden_tops.insert(top) {

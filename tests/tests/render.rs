@@ -17,7 +17,8 @@ use nebula_demo::app::{DrawOptions, MorphRule, OpaqueSea, PlanetApp};
 use nebula_demo::flight::{Flight, FlightReport, Keyframe, fly};
 use nebula_demo::gpu::DebugView;
 use nebula_demo::headless::{
-    Picture, Shot, draw_frame, headless_gpu, place_sun, prime, render_app, report_json, shot_view, write_png,
+    Picture, Shot, draw_frame, headless_gpu, prepare_shot, render_app, report_json, settle_and_draw, shot_view,
+    write_png,
 };
 use nebula_demo::planet_settings;
 use nebula_math::DVec3;
@@ -739,18 +740,9 @@ fn place_with_ground(planet: &ProceduralPlanet, rng: &mut Rng, heights: std::ops
 /// choose, and draws it.
 fn settled_with_sea(name: &str, settings: &PlanetSettings, shot: &Shot, sea: Option<OpaqueSea>) -> Picture {
     let mut app = app(settings, shot, DrawOptions::default());
-    let view = shot_view(shot).expect("view");
-    app.set_view(view);
-    place_sun(&mut app, shot).expect("a sun over the view");
+    let view = prepare_shot(&mut app, shot).expect("a view");
     app.streamer_mut().0.set_opaque_sea(sea);
-    prime(&mut app).expect("a first frame");
-    let mut frames = 0;
-    while frames < 8 || !app.settled() {
-        app.step();
-        frames += 1;
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    let picture = draw_frame(&mut app, shot, &view).expect("drawn");
+    let picture = settle_and_draw(&mut app, shot, &view).expect("drawn");
     write_png(&folder().join(format!("{name}.png")), &picture.rgba, picture.size).expect("png written");
     println!("{name}: {}", report_json(&picture.figures, &picture.adapter));
     picture
