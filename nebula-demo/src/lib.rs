@@ -15,7 +15,7 @@
 //! use nebula_demo::headless::{Shot, render_shot};
 //! use nebula_math::DVec3;
 //! let shot = Shot::looking_at(DVec3::new(0.0, 0.0, 6_000.0), DVec3::ZERO, (256, 256));
-//! let image = render_shot(&nebula_demo::planet_settings(7, 2_000.0, 1.5), &shot)?;
+//! let image = render_shot(&nebula_voxel::PlanetSettings::scaled(7, 2_000.0, 1.5), &shot)?;
 //! assert_eq!(image.figures.crack_pixels, Some(0));
 //! # Ok::<(), anyhow::Error>(())
 //! ```
@@ -33,21 +33,3 @@ pub mod gpu;
 pub mod headless;
 pub mod hud;
 pub mod sun;
-
-use nebula_voxel::PlanetSettings;
-
-/// Planet parameters from the command line's radius and voxel size: relief
-/// scaled to the radius (6 % mountains, hills 0.6 %), capped at Earth's
-/// 4 km mountains and 40 m hills.
-#[must_use]
-pub fn planet_settings(seed: u32, radius: f64, voxel_size: f64) -> PlanetSettings {
-    PlanetSettings {
-        radius,
-        voxel_size,
-        amplitude: (radius * 0.06).min(4_000.0),
-        feature_size: (radius * 0.75).min(400_000.0),
-        detail_amplitude: (radius * 0.006).min(40.0),
-        detail_size: (radius * 0.075).min(600.0),
-        seed,
-    }
-}

@@ -21,9 +21,9 @@ use nebula_demo::commands;
 use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::hud::Hud;
-use nebula_demo::planet_settings;
+
 use nebula_math::DVec3;
-use nebula_voxel::{Voxel, VoxelHit, VoxelSource};
+use nebula_voxel::{PlanetSettings, Voxel, VoxelHit, VoxelSource};
 use nebula_world::walk::{Body, Walker, is_solid, local_frame, move_body};
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
@@ -263,7 +263,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             bail!("{name} must be a positive number, got {value}");
         }
     }
-    let settings = planet_settings(args.seed, args.radius, args.voxel_size);
+    let settings = PlanetSettings::scaled(args.seed, args.radius, args.voxel_size);
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
     })?;

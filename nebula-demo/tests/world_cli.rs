@@ -6,7 +6,6 @@ use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use nebula_demo::planet_settings;
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, Voxel, VoxelCoord, VoxelSource};
 use nebula_world::{Edit, World};
@@ -16,7 +15,7 @@ const EXE: &str = env!("CARGO_BIN_EXE_nebula-demo");
 
 /// The demo's default planet (2 km, seed 7).
 fn settings() -> PlanetSettings {
-    planet_settings(7, 2_000.0, 1.5)
+    PlanetSettings::scaled(7, 2_000.0, 1.5)
 }
 
 fn scratch(name: &str) -> PathBuf {

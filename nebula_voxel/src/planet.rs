@@ -7,16 +7,21 @@
 //! it is seamless across cube faces:
 //!
 //! ```text
-//!   p = d · radius / feature_size
-//!   continents = fbm(p)                     (Perlin, persistence 0.45)
-//!   ridges     = (ridged_multi(2p) + 1) / 2 (mountain chains, in [0, 1])
-//!   hills      = fbm(d · radius / detail_size)   (Perlin, persistence 0.5)
-//!   H = amplitude · clamp(0.6·continents + 0.4·ridges·smoothstep(0, 0.3, continents), −1, 1)
-//!     + detail_amplitude · hills
+//!   continents = fbm(d · radius / feature_size)          (Perlin, persistence 0.45)
+//!   ridges     = (ridged_multi(d · radius / mountain_size) + 1) / 2          (in [0, 1])
+//!   hills      = (fbm(d · radius / detail_size) + 1) / 2   (Perlin, persistence 0.5)
+//!   mountains  = ridges³ · smoothstep(0.12, 0.32, continents)                (in [0, 1])
+//!   H = amplitude · clamp(slope·continents + 0.6·mountains, −1, 1)
+//!     + detail_amplitude · hills · (1 + 6·mountains)
 //! ```
 //!
-//! The hills give the metre-scale relief a player walks on; without them a
-//! planet-sized landform is flat over any one chunk.
+//! `slope` is 0.6 under the sea and 0.2 over land, so the land rises
+//! gently from its coasts; the cube of the ridges keeps the mountain
+//! chains narrow, and the mask stands them on the continents' cores. The
+//! hills give the relief a player walks on (without them a planet-sized
+//! landform is flat over any one chunk), and grow into the valleys and
+//! spurs of the ranges. H rises with each of the three sums, which the
+//! surface bounds rely on.
 //!
 //! # LOD sampling rule: the far-corner voxel
 //!
@@ -53,17 +58,24 @@
 //! steepest height change per lattice step (layers per cell),
 //!
 //! ```text
-//!   |top_L − top_0| ≤ s + 2·S·(s − 1)      layers,  δ(L) = that × layer height
+//!   |top_L − top_0| ≤ s + min(2·S·(s − 1), relief)   layers,  δ(L) = that × layer height
 //! ```
+//!
+//! where `relief` is the most H can vary anywhere (highest less lowest),
+//! which wins at coarse LODs.
 //!
 //! This δ is what skirts are sized from ([`VoxelSource::geometric_error`]).
 //! The LOD selection does not use it: it asks that a drawn voxel edge
 //! subtend at most τ pixels ([`ChunkLayout::voxel_edge`]).
 //!
-//! `S` is measured when the planet is built (the largest step over 4,096
-//! places, ×1.5 for the places not sampled), so the bound is empirical, not
-//! proven: a steeper spot than any sampled could exceed it. The test
-//! `geometric_error_bounds_the_voxel_tops` checks it against the voxels of
+//! `S` is built when the planet is: each noise sum's steepest step over
+//! 4,096 places (×1.5 for the places not sampled), put through `combine`
+//! as if the three were steepest in one place. The sums are alike
+//! everywhere, so sampling finds their steepest steps, but the bound is
+//! empirical, not proven. H's own steepest step at random places would
+//! not do: the mountains are steepest along their crests, which random
+//! places seldom hit. The tests `max_slope_holds_where_the_mountains_are_steepest`
+//! and `geometric_error_bounds_the_voxel_tops` check S and δ against
 //! places unrelated to the samples.
 //!
 //! # Surface bounds
@@ -102,8 +114,10 @@ pub struct PlanetSettings {
     pub voxel_size: f64,
     /// Largest height above or depth below the base radius, metres.
     pub amplitude: f64,
-    /// Wavelength of the largest landforms, metres.
+    /// Wavelength of the largest landforms (continents and oceans), metres.
     pub feature_size: f64,
+    /// Wavelength of the mountain chains on the continents, metres.
+    pub mountain_size: f64,
     /// Height of the small hills on top of the landforms, metres.
     pub detail_amplitude: f64,
     /// Wavelength of the small hills, metres.
@@ -113,34 +127,38 @@ pub struct PlanetSettings {
 }
 
 impl PlanetSettings {
-    /// An Earth-sized planet: 6,371 km, ~1.2 m voxels, 4 km mountains with
-    /// 40 m hills 600 m across.
+    /// A planet of `radius` metres and `voxel_size`-metre voxels with relief
+    /// scaled to it, capped at Earth's: continents 75 % of the radius
+    /// across (at most 2,500 km), mountain chains as far apart (at most
+    /// 60 km), relief 6 % of the radius (at most 4 km), hills 0.6 % of it
+    /// (at most 60 m) and 7.5 % of it across (at most 3 km), seven times
+    /// taller on the mountains.
     #[must_use]
-    pub fn earth(seed: u32) -> Self {
+    pub fn scaled(seed: u32, radius: f64, voxel_size: f64) -> Self {
         Self {
-            radius: 6_371_000.0,
-            voxel_size: 1.0,
-            amplitude: 4_000.0,
-            feature_size: 400_000.0,
-            detail_amplitude: 40.0,
-            detail_size: 600.0,
+            radius,
+            voxel_size,
+            amplitude: (radius * 0.06).min(4_000.0),
+            feature_size: (radius * 0.75).min(2_500_000.0),
+            mountain_size: (radius * 0.75).min(60_000.0),
+            detail_amplitude: (radius * 0.006).min(60.0),
+            detail_size: (radius * 0.075).min(3_000.0),
             seed,
         }
     }
 
+    /// An Earth-sized planet: 6,371 km, ~1.2 m voxels, continents
+    /// 2,500 km across, 4 km of relief, mountain chains 60 km apart.
+    #[must_use]
+    pub fn earth(seed: u32) -> Self {
+        Self::scaled(seed, 6_371_000.0, 1.0)
+    }
+
     /// A small planet for tests and demos: 2 km radius, ~1.5 m voxels
-    /// (LOD 0..=6), 120 m mountains with 12 m hills 150 m across.
+    /// (LOD 0..=6), 120 m of relief with 12 m hills 150 m across.
     #[must_use]
     pub fn small(seed: u32) -> Self {
-        Self {
-            radius: 2_000.0,
-            voxel_size: 1.5,
-            amplitude: 120.0,
-            feature_size: 1_500.0,
-            detail_amplitude: 12.0,
-            detail_size: 150.0,
-            seed,
-        }
+        Self::scaled(seed, 2_000.0, 1.5)
     }
 }
 
@@ -159,6 +177,11 @@ pub struct ProceduralPlanet {
     layer_height: f64,
     /// `radius / feature_size`: unit direction → noise space.
     noise_scale: f64,
+    /// `radius / mountain_size`: unit direction → ridge noise space.
+    ridge_scale: f64,
+    /// Each noise sum's steepest change per lattice step (continents,
+    /// ridges, hills), measured ([`Self::measure_slopes`]).
+    sum_steps: [f64; 3],
     /// S: steepest height change per lattice step, layers per cell.
     max_slope: f64,
     /// Heights of recently filled chunk columns, shared by their radial
@@ -171,6 +194,24 @@ pub struct ProceduralPlanet {
 /// share a priority), and for a column's parent a little before the column
 /// (coarse first): a view's worth of columns catches most of both.
 const HEIGHT_CACHE_COLUMNS: usize = 2048;
+
+/// Ranges `(low, high)` of the three noise sums of [`ProceduralPlanet::combine`]
+/// over some place.
+#[derive(Clone, Copy, Debug)]
+struct SumRanges {
+    continents: (f64, f64),
+    ridges: (f64, f64),
+    hills: (f64, f64),
+}
+
+impl SumRanges {
+    /// Anything the sums can be.
+    const EVERYWHERE: Self = Self {
+        continents: (f64::NEG_INFINITY, f64::INFINITY),
+        ridges: (f64::NEG_INFINITY, f64::INFINITY),
+        hills: (f64::NEG_INFINITY, f64::INFINITY),
+    };
+}
 
 /// The heights (in layers) of a chunk column's padded voxel columns, by
 /// column, for the chunks of its other radial layers.
@@ -257,6 +298,7 @@ impl ProceduralPlanet {
         let radius = positive("radius", settings.radius)?;
         let voxel_size = positive("voxel size", settings.voxel_size)?;
         positive("feature size", settings.feature_size)?;
+        positive("mountain size", settings.mountain_size)?;
         positive("detail size", settings.detail_size)?;
         if !settings.detail_amplitude.is_finite() {
             return Err(VoxelError::NonFinite { name: "detail amplitude", value: settings.detail_amplitude });
@@ -295,24 +337,30 @@ impl ProceduralPlanet {
         let sphere = Cubesphere::new(radius, resolution, layer_height, SphereMap::EquiAngular)?;
         let layout = ChunkLayout::new(sphere, max_lod)?;
         // Enough octaves that the finest wavelength is about 4 voxels.
-        let octaves = (settings.feature_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 16.0) as usize;
-        let continents = Fractal::fbm(settings.seed, octaves, 0.45, 2.0);
-        let ridges = Fractal::ridged(settings.seed.wrapping_add(1), octaves.saturating_sub(1).max(1), 2.0);
+        let octaves_for = |wavelength: f64| (wavelength / (4.0 * layer_height)).log2().ceil().clamp(1.0, 16.0) as usize;
+        let continents = Fractal::fbm(settings.seed, octaves_for(settings.feature_size), 0.45, 2.0);
+        let ridges = Fractal::ridged(settings.seed.wrapping_add(1), octaves_for(settings.mountain_size), 2.0);
         let hill_octaves = (settings.detail_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 12.0) as usize;
         let hills = Fractal::fbm(settings.seed.wrapping_add(2), hill_octaves, 0.5, std::f64::consts::PI * 2.0 / 3.0);
         let mut planet = Self {
             detail_scale: radius / settings.detail_size,
             hills,
             noise_scale: radius / settings.feature_size,
+            ridge_scale: radius / settings.mountain_size,
             settings,
             layout,
             continents,
             ridges,
             layer_height,
+            sum_steps: [0.0; 3],
             max_slope: 0.0,
             heights: HeightCache::default(),
         };
-        planet.max_slope = planet.measure_max_slope();
+        let (sum_steps, max_slope) = planet.measure_slopes();
+        planet.sum_steps = sum_steps;
+        // Both bound the slope everywhere; the second, sum by sum, is the
+        // one `surface_bounds` narrows place by place.
+        planet.max_slope = max_slope.min(planet.slope_within(SumRanges::EVERYWHERE));
         Ok(planet)
     }
 
@@ -351,13 +399,15 @@ impl ProceduralPlanet {
         let p = direction * self.noise_scale;
         self.combine(
             self.continents.get(p.to_array()),
-            self.ridges.get((p * 2.0).to_array()),
+            self.ridges.get((direction * self.ridge_scale).to_array()),
             self.hills.get((direction * self.detail_scale).to_array()),
         )
     }
 
-    /// Bounds `(low, high)`, in layers, of H over the square of lattice
-    /// cells `[i − half, i + half] × [j − half, j + half]` on `face`.
+    /// The ranges of the three noise sums over the square of lattice cells
+    /// `[i − half, i + half] × [j − half, j + half]` on `face`: H over it
+    /// lies between [`Self::combine`] of their ends (`heights`), and its
+    /// slope within [`Self::slope_within`] of them.
     ///
     /// Every direction of the square lies within the angle to its farthest
     /// corner or edge middle of the centre's (its edges are great-circle
@@ -370,7 +420,7 @@ impl ProceduralPlanet {
     /// with a column's size, while H's range is that of the octaves coarse
     /// enough to matter; at LOD 9 on an Earth S allows ±4.4 km where the
     /// terrain varies by hundreds of metres.
-    fn height_range(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> (f64, f64) {
+    fn sum_ranges(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> SumRanges {
         let sphere = self.layout.sphere();
         let centre = sphere.direction(face, i, j);
         // The largest angle is the smallest cosine: one `acos`, not eight.
@@ -383,14 +433,53 @@ impl ProceduralPlanet {
         // A chord is shorter than its angle; 1 % more for rounding.
         let reach = cosine.clamp(-1.0, 1.0).acos() * 1.01;
         let p = centre * self.noise_scale;
-        let (continents_low, continents_high) = self.continents.range_near(p.to_array(), reach * self.noise_scale);
-        let (ridges_low, ridges_high) = self.ridges.range_near((p * 2.0).to_array(), reach * self.noise_scale * 2.0);
-        let (hills_low, hills_high) =
-            self.hills.range_near((centre * self.detail_scale).to_array(), reach * self.detail_scale);
+        SumRanges {
+            continents: self.continents.range_near(p.to_array(), reach * self.noise_scale),
+            ridges: self.ridges.range_near((centre * self.ridge_scale).to_array(), reach * self.ridge_scale),
+            hills: self.hills.range_near((centre * self.detail_scale).to_array(), reach * self.detail_scale),
+        }
+    }
+
+    /// Bounds `(low, high)`, in layers, of H where the sums lie in `ranges`.
+    fn heights(&self, ranges: SumRanges) -> (f64, f64) {
+        let SumRanges { continents, ridges, hills } = ranges;
         (
-            self.combine(continents_low, ridges_low, hills_low) / self.layer_height,
-            self.combine(continents_high, ridges_high, hills_high) / self.layer_height,
+            self.combine(continents.0, ridges.0, hills.0) / self.layer_height,
+            self.combine(continents.1, ridges.1, hills.1) / self.layer_height,
         )
+    }
+
+    /// The steepest H changes per lattice step, layers per cell, where the
+    /// sums lie in `ranges`: each sum's steepest step
+    /// ([`Self::measure_slopes`]) through [`Self::combine`] as if all
+    /// three were at their steepest at once, each factor at its largest in
+    /// `ranges` (a product `f·g` steps by at most `Δf·max g + max f·Δg`).
+    ///
+    /// Why not H's own steepest step, sampled: the mountains cover a few
+    /// per cent of a planet and are steepest along their crests, which
+    /// random places seldom hit (4,096 of them put S at 0.77 layers per
+    /// cell on an Earth whose ranges reach 1.3). Each sum on its own is
+    /// alike everywhere, so its steepest step is found at places of any
+    /// kind, and the worst case covers the places where they add up. Where
+    /// no mountain can be (the lowlands, most of a planet) the bound is
+    /// that of the continents and hills alone.
+    fn slope_within(&self, ranges: SumRanges) -> f64 {
+        let [continents_step, ridges_step, hills_step] = self.sum_steps;
+        let (continents_low, continents_high) = ranges.continents;
+        let ridges = ((ranges.ridges.1 + 1.0) * 0.5).clamp(0.0, 1.0);
+        let hills = ((ranges.hills.1.clamp(-1.0, 1.0)) + 1.0) * 0.5;
+        let mask = smoothstep((continents_high - MOUNTAIN_START) / MOUNTAIN_INLAND);
+        // smoothstep rises by at most 1.5 over its width, and not at all
+        // below it; the ridges in [0, 1] step by half the sum's.
+        let mask_step = if mask > 0.0 { 1.5 / MOUNTAIN_INLAND * continents_step } else { 0.0 };
+        let ridges_cubed_step = 3.0 * ridges * ridges * 0.5 * ridges_step;
+        let mountains = ridges.powi(MOUNTAIN_SHARPNESS) * mask;
+        let mountains_step = ridges_cubed_step * mask + ridges.powi(MOUNTAIN_SHARPNESS) * mask_step;
+        let slope = if continents_low < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
+        let landforms = self.settings.amplitude * (slope * continents_step + MOUNTAIN_SHARE * mountains_step);
+        let detail = self.settings.detail_amplitude
+            * (0.5 * hills_step * (1.0 + MOUNTAIN_ROUGHNESS * mountains) + MOUNTAIN_ROUGHNESS * hills * mountains_step);
+        (landforms + detail) / self.layer_height
     }
 
     /// The voxel columns in `directions` for voxels `span` layers tall:
@@ -413,11 +502,9 @@ impl ProceduralPlanet {
     fn columns_at(&self, directions: &[nebula_math::DVec3], span: f64) -> Vec<Column> {
         let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
         let fractals = [&self.continents, &self.ridges, &self.hills];
-        // (d · s) · 2, as `height_at` rounds it.
-        let ridge_points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * self.noise_scale * 2.0).to_array()).collect();
         let mut batches = [
             self.continents.begin(&points(self.noise_scale)),
-            self.ridges.begin(&ridge_points),
+            self.ridges.begin(&points(self.ridge_scale)),
             self.hills.begin(&points(self.detail_scale)),
         ];
         let rounds = fractals.iter().map(|f| f.octaves()).max().unwrap_or(0);
@@ -430,8 +517,8 @@ impl ProceduralPlanet {
         let voxel_m = span * self.layer_height;
         let first_look = (1..=rounds)
             .find(|&round| {
-                let best = 2.0 * self.settings.amplitude * 0.6 * self.continents.fbm_rest(round)
-                    + 2.0 * self.settings.detail_amplitude * self.hills.fbm_rest(round);
+                let best = 2.0 * self.settings.amplitude * LAND_SLOPE * self.continents.fbm_rest(round)
+                    + self.settings.detail_amplitude * self.hills.fbm_rest(round);
                 best < voxel_m
             })
             .unwrap_or(rounds);
@@ -443,11 +530,11 @@ impl ProceduralPlanet {
             if !last && (round < first_look || (round - first_look) % 2 == 1) {
                 continue;
             }
-            let continents_spread = voxel_m / (0.6 * self.settings.amplitude);
+            let continents_spread = voxel_m / (LAND_SLOPE * self.settings.amplitude);
             open.retain(|&k| {
                 let (c_low, c_high) = self.continents.bounds(&batches[0], k);
-                // The continents alone spread H by 0.6·amplitude per unit
-                // (`combine`, short of its clamp): a spread of a voxel or
+                // The continents alone spread H by at least
+                // LAND_SLOPE·amplitude per unit (`combine`, short of its clamp): a spread of a voxel or
                 // more holds a voxel threshold, so such a column stays open
                 // without the full test (staying open is always safe).
                 if !last && c_high - c_low >= continents_spread {
@@ -499,11 +586,13 @@ impl ProceduralPlanet {
 
     /// The height from the three noise sums at a point (module docs).
     fn combine(&self, continents: f64, ridges: f64, hills: f64) -> f64 {
-        let ridges = (ridges + 1.0) * 0.5;
-        let mask = smoothstep(continents / 0.3);
-        let hills = hills.clamp(-1.0, 1.0);
-        self.settings.amplitude * (0.6 * continents + 0.4 * ridges * mask).clamp(-1.0, 1.0)
-            + self.settings.detail_amplitude * hills
+        let ridges = ((ridges + 1.0) * 0.5).clamp(0.0, 1.0);
+        let mask = smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND);
+        let hills = (hills.clamp(-1.0, 1.0) + 1.0) * 0.5;
+        let slope = if continents < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
+        let mountains = ridges.powi(MOUNTAIN_SHARPNESS) * mask;
+        self.settings.amplitude * (slope * continents + MOUNTAIN_SHARE * mountains).clamp(-1.0, 1.0)
+            + self.settings.detail_amplitude * hills * (1.0 + MOUNTAIN_ROUGHNESS * mountains)
     }
 
     /// Height in radial layers at fractional lattice coordinates `(i, j)`.
@@ -554,10 +643,10 @@ impl ProceduralPlanet {
     }
 
     /// Height (metres) above which a column at `sin_latitude` is snow: more
-    /// than half the relief at the equator, 10 % of it below sea level at
+    /// than half the relief at the equator, 15 % of it below sea level at
     /// the poles.
     fn snow_line(&self, sin_latitude: f64) -> f64 {
-        self.settings.amplitude * (0.55 - 0.65 * sin_latitude.abs().powi(3))
+        self.settings.amplitude * (0.55 - 0.7 * sin_latitude.abs().powi(4))
     }
 
     /// The lowest [`Self::snow_line`] anywhere over `column`: at the
@@ -693,22 +782,65 @@ impl ProceduralPlanet {
         classify_depth(column, column.height - corner_centre(h, span), span)
     }
 
-    fn measure_max_slope(&self) -> f64 {
+    /// Each noise sum's steepest change between neighbouring lattice cells
+    /// at 4,096 places, times 1.5 for the places not visited (for
+    /// [`Self::slope_within`]), and S from the same places: found, not
+    /// proven, but of sums that are alike everywhere.
+    ///
+    /// S is [`Self::slope_within`] everywhere, made tighter by taking each
+    /// sum's step together with its value at the same place: a hill is
+    /// not at its highest where it is steepest, nor a ridge's cube.
+    fn measure_slopes(&self) -> ([f64; 3], f64) {
         // A fixed sequence of places (not the seed: the bound must not depend
         // on luck with the terrain seed's own random numbers).
-        let n = f64::from(self.layout.sphere().resolution());
+        let sphere = self.layout.sphere();
+        let n = f64::from(sphere.resolution());
         let mut state = 0x9E37_79B9_7F4A_7C15_u64;
         let mut next = || nebula_math::unit_random(&mut state);
-        let mut steepest = 0.0_f64;
+        let sums =
+            [(&self.continents, self.noise_scale), (&self.ridges, self.ridge_scale), (&self.hills, self.detail_scale)];
+        let mut steepest = [0.0_f64; 3];
+        // (step, largest value) of the ridges' cube and of the hills in
+        // [0, 1], by place.
+        let (mut cubes, mut hills) = (Vec::with_capacity(4096), Vec::with_capacity(4096));
+        let step_and_largest = |[here, along_i, along_j]: [f64; 3]| {
+            ((along_i - here).abs().max((along_j - here).abs()), here.max(along_i).max(along_j))
+        };
         for sample in 0..4096 {
             let face = CubeFace::ALL[sample % 6];
             let (i, j) = (next() * (n - 1.0), next() * (n - 1.0));
-            let here = self.height_layers(face, i, j);
-            steepest = steepest
-                .max((self.height_layers(face, i + 1.0, j) - here).abs())
-                .max((self.height_layers(face, i, j + 1.0) - here).abs());
+            let places =
+                [sphere.direction(face, i, j), sphere.direction(face, i + 1.0, j), sphere.direction(face, i, j + 1.0)];
+            let values = sums.map(|(fractal, scale)| places.map(|d| fractal.get((d * scale).to_array())));
+            for (values, steepest) in values.iter().zip(&mut steepest) {
+                *steepest = steepest.max(step_and_largest(*values).0);
+            }
+            cubes.push(step_and_largest(values[1].map(|r| ((r + 1.0) * 0.5).clamp(0.0, 1.0).powi(MOUNTAIN_SHARPNESS))));
+            hills.push(step_and_largest(values[2].map(|h| (h.clamp(-1.0, 1.0) + 1.0) * 0.5)));
         }
-        steepest * 1.5
+        let steps = steepest.map(|step| step * 1.5);
+        // As `slope_within`: mountains = cube · mask steps by at most
+        // Δcube·1 + cube·Δmask.
+        let mask_step = 1.5 / MOUNTAIN_INLAND * steps[0];
+        let mountains_step = cubes.iter().map(|&(step, cube)| 1.5 * step + cube * mask_step).fold(0.0, f64::max);
+        let detail = hills
+            .iter()
+            .map(|&(step, hill)| 1.5 * step * (1.0 + MOUNTAIN_ROUGHNESS) + MOUNTAIN_ROUGHNESS * hill * mountains_step)
+            .fold(0.0, f64::max);
+        let slope = self.settings.amplitude
+            * (OCEAN_SLOPE.max(LAND_SLOPE) * steps[0] + MOUNTAIN_SHARE * mountains_step)
+            + self.settings.detail_amplitude * detail;
+        (steps, slope / self.layer_height)
+    }
+
+    /// The highest H can be, metres above the base radius (`combine`).
+    fn highest(&self) -> f64 {
+        self.settings.amplitude + self.settings.detail_amplitude * (1.0 + MOUNTAIN_ROUGHNESS)
+    }
+
+    /// The lowest H can be, metres (`combine`: the hills are never negative).
+    fn lowest(&self) -> f64 {
+        -self.settings.amplitude
     }
 }
 
@@ -718,6 +850,25 @@ fn ceil(x: f64) -> f64 {
     let truncated = x as i64 as f64;
     if truncated < x { truncated + 1.0 } else { truncated }
 }
+
+/// H per unit of the continents sum below sea level (ocean depth), and
+/// above it (lowland height), shares of the amplitude: the land rises
+/// gently from its coasts, so lowlands are wide and mountains stand out.
+const OCEAN_SLOPE: f64 = 0.6;
+const LAND_SLOPE: f64 = 0.2;
+/// The share of the amplitude the mountain chains add at most, and the
+/// power of the ridge sum (in `[0, 1]`) that makes them: a high power keeps
+/// the chains narrow, with lowland between them.
+const MOUNTAIN_SHARE: f64 = 0.6;
+const MOUNTAIN_SHARPNESS: i32 = 3;
+/// How many times taller the hills grow on the mountains: the valleys and
+/// spurs of a range.
+const MOUNTAIN_ROUGHNESS: f64 = 6.0;
+/// Mountains come in where the continents sum passes `MOUNTAIN_START`,
+/// fully `MOUNTAIN_INLAND` further inland: the chains stand on the
+/// continents' cores, lowland around them.
+const MOUNTAIN_START: f64 = 0.1;
+const MOUNTAIN_INLAND: f64 = 0.3;
 
 fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
@@ -762,7 +913,7 @@ impl VoxelSource for ProceduralPlanet {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
-        // H's range from the noise's ranges (`height_range`: at most one
+        // H's range from the noise's ranges (`sum_ranges`: at most one
         // evaluation, tight at coarse LODs). Where S over half a column is
         // narrower (fine LODs), also sample the four corners and the
         // centre: every point of the column is within `step` = half the
@@ -771,9 +922,13 @@ impl VoxelSource for ProceduralPlanet {
         // between. (The LOD tree asks for every node it creates: this is
         // its hottest call.)
         let step = chunk / 2.0;
-        let margin = self.max_slope * step;
         let centre = ((f64::from(column.x) + 0.5) * chunk, (f64::from(column.y) + 0.5) * chunk);
-        let (mut low, mut high) = self.height_range(column.face, centre, step);
+        // The sums' ranges reach a voxel beyond the column, for the
+        // neighbouring voxel columns below.
+        let ranges = self.sum_ranges(column.face, centre, step + span);
+        let slope = self.slope_within(ranges).min(self.max_slope);
+        let margin = slope * step;
+        let (mut low, mut high) = self.heights(ranges);
         if 2.0 * margin < high - low {
             let (mut sampled_low, mut sampled_high) = (f64::INFINITY, f64::NEG_INFINITY);
             for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
@@ -786,15 +941,15 @@ impl VoxelSource for ProceduralPlanet {
             low = low.max(sampled_low - margin);
             high = high.min(sampled_high + margin);
         }
-        let limit = (self.settings.amplitude + self.settings.detail_amplitude) / self.layer_height;
+        let (lowest, highest) = (self.lowest() / self.layer_height, self.highest() / self.layer_height);
         // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
         // column's height H. A solid voxel with air beside it lies down to
         // the top of the neighbouring voxel column, whose sample is up to
         // one voxel (span cells) further out: S·span lower still, and its
         // top again up to a voxel below its H.
-        let neighbour = self.max_slope * span + span;
-        let min_layer = (low.max(-limit) + 0.5 - span - neighbour).floor() as i64;
-        let max_layer = (high.min(limit) + 0.5).ceil() as i64;
+        let neighbour = slope * span + span;
+        let min_layer = (low.max(lowest) + 0.5 - span - neighbour).floor() as i64;
+        let max_layer = (high.min(highest) + 0.5).ceil() as i64;
         let sphere = self.layout.sphere();
         // Every column's H is below `high`; where that is under the sea and under the snow line (which dips
         // below sea level near the poles), every column is sea bed
@@ -811,10 +966,8 @@ impl VoxelSource for ProceduralPlanet {
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {
-        // H ≥ −(amplitude + detail amplitude); a LOD-0 top is within half
-        // a layer of H.
-        let depth = self.settings.amplitude + self.settings.detail_amplitude + self.layer_height;
-        Some(self.settings.radius - depth)
+        // A LOD-0 top is within half a layer of H.
+        Some(self.settings.radius + self.lowest() - self.layer_height)
     }
 
     fn geometric_error(&self, lod: u8) -> f64 {
@@ -822,7 +975,10 @@ impl VoxelSource for ProceduralPlanet {
             return 0.0;
         }
         let span = self.layout.voxel_span(lod) as f64;
-        (span + 2.0 * self.max_slope * (span - 1.0)) * self.layer_height
+        // Or, past some LOD, the whole relief: no top is further from
+        // another than that (module docs).
+        let relief = (self.highest() - self.lowest()) / self.layer_height;
+        (span + (2.0 * self.max_slope * (span - 1.0)).min(relief)) * self.layer_height
     }
 }
 

@@ -20,7 +20,7 @@ use nebula_demo::headless::{
     Picture, Shot, draw_frame, headless_gpu, prepare_shot, render_app, report_json, settle_and_draw, shot_view,
     write_png,
 };
-use nebula_demo::planet_settings;
+
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
@@ -41,11 +41,11 @@ fn adapter_or_skip(test: &str) -> bool {
 }
 
 fn small() -> PlanetSettings {
-    planet_settings(7, 2_000.0, 1.5)
+    PlanetSettings::scaled(7, 2_000.0, 1.5)
 }
 
 fn earth() -> PlanetSettings {
-    planet_settings(11, 6_371_000.0, 1.0)
+    PlanetSettings::scaled(11, 6_371_000.0, 1.0)
 }
 
 fn ground(settings: &PlanetSettings, dir: DVec3) -> DVec3 {
@@ -191,8 +191,9 @@ fn small_planet_settled_views_have_no_cracks() {
     let eye = ground(&settings, edge) + edge * 20.0;
     let target = ground(&settings, (edge + DVec3::Z * 0.0175).normalize());
     check("grazing-edge", &settings, &shot(eye, target, 12.0), 0.3);
-    // Straight down from 150 m.
-    let dir = DVec3::new(-0.2, 0.9, -0.4).normalize();
+    // Straight down from 150 m over land (a place from a fixed seed).
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let dir = place_with_ground(&planet, &mut Rng(0x5D), 10.0..100.0);
     let eye = ground(&settings, dir) + dir * 150.0;
     check("straight-down", &settings, &shot(eye, DVec3::ZERO, 60.0), 0.99);
 }
@@ -200,7 +201,7 @@ fn small_planet_settled_views_have_no_cracks() {
 /// A 20 km planet (LODs 0..=9), 800 m over a cube corner, looking at the
 /// horizon: near blocks and far hills, many LOD seams in one picture.
 fn low_over_a_corner() -> (PlanetSettings, Shot) {
-    let settings = planet_settings(7, 20_000.0, 1.5);
+    let settings = PlanetSettings::scaled(7, 20_000.0, 1.5);
     let corner = DVec3::ONE.normalize();
     let eye = corner * (20_000.0 + 800.0);
     let target = (corner + DVec3::new(0.25, -0.1, -0.1)).normalize() * 20_000.0;
@@ -765,7 +766,7 @@ fn the_sea_hides_only_what_changes_no_pixel() {
     let opaque = OpaqueSea { radius, hiding_depth: nebula_demo::gpu::sea_hiding_depth(radius) };
     let mut rng = Rng(0x5EA);
     let shallow = place_with_ground(&planet, &mut rng, -12.0..-3.0);
-    let deep = DVec3::new(4410030.3170, 4409605.7733, 1322945.4135).normalize();
+    let deep = place_with_ground(&planet, &mut rng, -1200.0..-400.0);
     for (name, dir, altitude, pitch) in [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)] {
         let (eye, look) = pose(&settings, dir, altitude, dir.cross(DVec3::Z), pitch);
         let shot = Shot { background: None, sun: Some((50.0, 30.0)), ..shot(eye, look, 60.0) };
