@@ -241,6 +241,10 @@ impl PlanetApp {
                 .is_none()
                 .then(|| nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius()),
             eye_in_sea: eye_in_sea(self.streamer().voxels().base(), view.camera.position),
+            voxel_size_and_relief: {
+                let planet = self.streamer().voxels().base();
+                (planet.voxel_size(), 2.0 * planet.settings().amplitude)
+            },
         };
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
             let stream = world.resource::<Stream>();

@@ -61,7 +61,19 @@ struct FrameUniform {
     /// x: 1 where the eye is in the sea (under its surface, over sea
     /// bed), else 0.
     sea: [f32; 4],
+    /// xyz: the eye's world position modulo `TINT_PERIOD` (from f64), w:
+    /// that period: camera-relative positions plus this are world
+    /// positions, exact to f32 near the eye, for the terrain's tint noise.
+    tint_origin: [f32; 4],
+    /// x: the LOD-0 voxel edge, y: the relief, metres
+    /// ([`FrameParams::voxel_size_and_relief`]).
+    terrain: [f32; 4],
 }
+
+/// Metres after which the terrain's tint noise repeats: a multiple of its
+/// cells (`shader.wgsl`, `tint`), so that moving the origin by a period
+/// changes nothing.
+const TINT_PERIOD: f64 = 4096.0;
 
 /// Metres of water that dim the sea bed seen through them by a factor e:
 /// 3 m, or a thousandth of a small planet's radius (so that its shallow
@@ -155,6 +167,10 @@ pub struct FrameParams {
     pub eye_in_sea: bool,
     /// Unit direction towards the sun (world).
     pub sun: Vec3,
+    /// The planet's LOD-0 voxel edge and the height of its relief
+    /// (lowest to highest ground), metres: where voxels are taller than
+    /// the relief, their sides are no landform and are lit as the ground.
+    pub voxel_size_and_relief: (f64, f64),
 }
 
 /// Device, queue, pipeline and the per-chunk uniform ring.
@@ -466,6 +482,11 @@ impl Gpu {
                 water_extinction(radius) as f32,
             ],
             sea: [if frame.eye_in_sea { 1.0 } else { 0.0 }, 0.0, 0.0, 0.0],
+            tint_origin: {
+                let origin = frame.eye.to_array().map(|c| c.rem_euclid(TINT_PERIOD) as f32);
+                [origin[0], origin[1], origin[2], TINT_PERIOD as f32]
+            },
+            terrain: [frame.voxel_size_and_relief.0 as f32, frame.voxel_size_and_relief.1 as f32, 0.0, 0.0],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
         if meshes.len() as u64 > self.chunk_capacity {

@@ -18,6 +18,10 @@ struct Frame {
     planet: vec4<f32>,
     // x: 1 where the eye is in the sea (gpu::FrameParams::eye_in_sea).
     sea: vec4<f32>,
+    // xyz: the eye's world position modulo w (gpu::TINT_PERIOD).
+    tint_origin: vec4<f32>,
+    // x: LOD-0 voxel edge, y: the planet's relief, metres.
+    terrain: vec4<f32>,
 };
 
 struct Chunk {
@@ -52,6 +56,8 @@ struct VertexOut {
     @location(3) morph: f32,
     // x: LOD, y: chunk id (for colouring).
     @location(4) @interpolate(flat) lod_id: vec2<f32>,
+    // Vertex − eye, metres.
+    @location(5) relative: vec3<f32>,
 };
 
 // μ = smoothstep(clamp((ρ_p/τ − 1) / (1.4 − 1), 0, 1)), ρ_p = δ_parent·K / D:
@@ -109,6 +115,7 @@ fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
     out.flags = flags;
     out.morph = mu;
     out.lod_id = chunk.info.xz;
+    out.relative = relative;
     return out;
 }
 
@@ -120,6 +127,7 @@ fn material_colour(material: u32) -> vec3<f32> {
         case 4u: { return vec3<f32>(0.76, 0.70, 0.50); } // sand
         case 5u: { return vec3<f32>(0.92, 0.94, 0.97); } // snow
         case 6u: { return vec3<f32>(0.55, 0.50, 0.38); } // sea bed
+        case 7u: { return vec3<f32>(0.09, 0.25, 0.08); } // forest
         default: { return vec3<f32>(0.6, 0.3, 0.6); }
     }
 }
@@ -145,12 +153,90 @@ struct TerrainOut {
     @location(1) sea: f32,
 };
 
+// A hash of an integer lattice point to [0, 1).
+fn hash(c: vec3<i32>) -> f32 {
+    var h = u32(c.x) * 0x8da6b343u ^ u32(c.y) * 0xd8163841u ^ u32(c.z) * 0xcb1ab31fu;
+    h = (h ^ (h >> 15u)) * 0x2c1b3c6du;
+    h = (h ^ (h >> 12u)) * 0x297a2d39u;
+    return f32(h ^ (h >> 15u)) / 4294967296.0;
+}
+
+// Value noise in [−1, 1] at `p` (in cells), repeating every `period` cells.
+fn value_noise(p: vec3<f32>, period: i32) -> f32 {
+    let cell = floor(p);
+    let f = p - cell;
+    let u = f * f * (3.0 - 2.0 * f);
+    let c = vec3<i32>(cell);
+    var corners: array<f32, 8>;
+    for (var k = 0; k < 8; k = k + 1) {
+        let o = vec3<i32>(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+        corners[k] = hash(((c + o) % period + period) % period);
+    }
+    let x0 = mix(mix(corners[0], corners[1], u.x), mix(corners[2], corners[3], u.x), u.y);
+    let x1 = mix(mix(corners[4], corners[5], u.x), mix(corners[6], corners[7], u.x), u.y);
+    return mix(x0, x1, u.z) * 2.0 - 1.0;
+}
+
+// Patches of lighter and darker ground, 16 m and 128 m across, fixed to the
+// world (gpu::TINT_PERIOD is a multiple of both) and faded out where they
+// would be smaller than a few pixels: what breaks up a field of one
+// material. x: brightness, y: the large patches alone.
+fn tint(relative: vec3<f32>) -> vec2<f32> {
+    let p = relative + frame.tint_origin.xyz;
+    let period = frame.tint_origin.w;
+    let pixels_per_metre = frame.params.x / max(length(relative), 1.0);
+    let fine = value_noise(p / 16.0, i32(period / 16.0)) * smoothstep(2.0, 8.0, 16.0 * pixels_per_metre);
+    let coarse = value_noise(p / 128.0, i32(period / 128.0)) * smoothstep(2.0, 8.0, 128.0 * pixels_per_metre);
+    return vec2<f32>(0.07 * fine + 0.1 * coarse, coarse);
+}
+
+// Sunlight and skylight on a surface of normal `n` where up is `up`: the
+// sun warms and dims towards the horizon and is gone below it; the sky
+// lights what faces up more than what faces sideways or down.
+fn lighting(n: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
+    let sun_height = dot(frame.sun.xyz, up);
+    let sun_colour = mix(vec3<f32>(1.0, 0.55, 0.32), vec3<f32>(1.0, 0.96, 0.9), smoothstep(0.0, 0.35, sun_height));
+    let sun = sun_colour * max(dot(n, frame.sun.xyz), 0.0) * smoothstep(-0.03, 0.05, sun_height) * 0.85;
+    let facing = dot(n, up) * 0.5 + 0.5;
+    let sky = mix(vec3<f32>(0.13, 0.12, 0.11), vec3<f32>(0.30, 0.35, 0.44), facing);
+    return sun + sky * (0.2 + 0.8 * smoothstep(-0.15, 0.1, sun_height));
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> TerrainOut {
     let n = normalize(in.normal);
-    let light = frame.sun.w + max(dot(n, frame.sun.xyz), 0.0) * (1.0 - frame.sun.w);
+    let up = normalize(in.relative + frame.eye_high.xyz + frame.eye_low.xyz);
+    // A voxel's top (bottom) is the sphere shell above (below) it: lit by
+    // the radial up, not by its flat quad's normal, which tilts by the
+    // quad's angular size (a greedy quad can span a chunk), so that no
+    // quad shows as a facet. Sides are lit by their normal, fading to
+    // the ground's light where voxels are taller than the relief (their
+    // sides are steps of quantisation, not landforms).
+    let facing = dot(n, up);
+    let voxel = frame.terrain.x * exp2(in.lod_id.x);
+    let landform = 1.0 - smoothstep(0.25 * frame.terrain.y, frame.terrain.y, voxel);
+    var shading_normal = normalize(mix(up, n, landform));
+    if (abs(facing) > 0.7) {
+        shading_normal = sign(facing) * up;
+    }
+    var light = lighting(shading_normal, up);
     var base = material_colour(in.material);
     let view = u32(frame.params.z + 0.5);
+    if (view == 0u) {
+        // Grass and forest show earth on their sides (steps and cliffs),
+        // and every material varies in patches.
+        let side = (1.0 - smoothstep(0.3, 0.7, abs(facing))) * landform;
+        if (in.material == 3u || in.material == 7u) {
+            base = mix(base, vec3<f32>(0.33, 0.26, 0.17), 0.55 * side);
+        }
+        let t = tint(in.relative);
+        base = base * (1.0 + t.x);
+        if (in.material == 3u) {
+            base = mix(base, vec3<f32>(0.36, 0.42, 0.16), 0.35 * clamp(t.y, 0.0, 1.0));
+        }
+    } else {
+        light = vec3<f32>(frame.sun.w + max(dot(n, frame.sun.xyz), 0.0) * (1.0 - frame.sun.w));
+    }
     if (view == 1u) {
         base = lod_colour(in.lod_id.x);
     } else if (view == 2u && (in.flags & 1u) != 0u) {
@@ -164,7 +250,13 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     }
     var out: TerrainOut;
     out.colour = vec4<f32>(encode(base * light), 1.0);
-    out.sea = select(0.0, 1.0, in.material == 6u);
+    // The sea goes over sea bed; and over the sides of voxels taller than
+    // the relief where they are below sea level: at a coarse LOD a coast
+    // is a wall one voxel tall (kilometres) from the sea bed up to the
+    // land, and what of it is under the sea is under water.
+    let below_sea = length(in.relative + frame.eye_high.xyz + frame.eye_low.xyz) < frame.planet.x;
+    let drowned_side = abs(facing) <= 0.7 && landform < 0.5 && below_sea;
+    out.sea = select(0.0, 1.0, in.material == 6u || drowned_side);
     return out;
 }
 

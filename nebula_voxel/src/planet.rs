@@ -195,6 +195,28 @@ pub struct ProceduralPlanet {
 /// (coarse first): a view's worth of columns catches most of both.
 const HEIGHT_CACHE_COLUMNS: usize = 2048;
 
+/// What a column's top material depends on besides its height.
+#[derive(Clone, Copy, Debug)]
+struct Climate {
+    /// +Z is north.
+    sin_latitude: f64,
+    /// The continents sum: how far inland.
+    continents: f64,
+    /// The mountains term ([`ProceduralPlanet::mountains`]).
+    mountains: f64,
+}
+
+/// Where [`ProceduralPlanet::surface`] changes its answer at one latitude.
+struct SurfaceThresholds {
+    /// Heights, metres: the snow line, bare rock, sea level, the shore,
+    /// the tree line.
+    heights: [f64; 5],
+    /// Continents sums: the deserts' edge, the forests' edge.
+    continents: [f64; 2],
+    /// The mountains term above which rock is bare.
+    mountains: f64,
+}
+
 /// Ranges `(low, high)` of the three noise sums of [`ProceduralPlanet::combine`]
 /// over some place.
 #[derive(Clone, Copy, Debug)]
@@ -396,12 +418,18 @@ impl ProceduralPlanet {
     /// `direction`.
     #[must_use]
     pub fn height_at(&self, direction: nebula_math::DVec3) -> f64 {
-        let p = direction * self.noise_scale;
-        self.combine(
-            self.continents.get(p.to_array()),
+        let [continents, ridges, hills] = self.sums_at(direction);
+        self.combine(continents, ridges, hills)
+    }
+
+    /// The three noise sums of [`Self::combine`] in unit direction
+    /// `direction`.
+    fn sums_at(&self, direction: nebula_math::DVec3) -> [f64; 3] {
+        [
+            self.continents.get((direction * self.noise_scale).to_array()),
             self.ridges.get((direction * self.ridge_scale).to_array()),
             self.hills.get((direction * self.detail_scale).to_array()),
-        )
+        ]
     }
 
     /// The ranges of the three noise sums over the square of lattice cells
@@ -543,10 +571,20 @@ impl ProceduralPlanet {
                 let (r_low, r_high) = self.ridges.bounds(&batches[1], k);
                 let (h_low, h_high) = self.hills.bounds(&batches[2], k);
                 let (low, high) = (self.combine(c_low, r_low, h_low), self.combine(c_high, r_high, h_high));
-                if !last && self.undecided(low, high, directions[k].z, span) {
+                // The climate's ranges, as H's (`mountains` rises with both sums).
+                let climates = [(c_low, self.mountains(c_low, r_low)), (c_high, self.mountains(c_high, r_high))]
+                    .map(|(continents, mountains)| Climate { sin_latitude: directions[k].z, continents, mountains });
+                if !last && self.undecided(low, high, climates, span) {
                     return true;
                 }
                 let height = if last { low } else { 0.5 * (low + high) };
+                // Where no threshold lies between the ends, the middle
+                // classifies as any point between them does.
+                let climate = Climate {
+                    continents: 0.5 * (climates[0].continents + climates[1].continents),
+                    mountains: 0.5 * (climates[0].mountains + climates[1].mountains),
+                    ..climates[0]
+                };
                 // Rounded up (f32), so the slack still holds H; never 0
                 // unless every octave is in (0 means exact).
                 let slack = if last {
@@ -554,7 +592,7 @@ impl ProceduralPlanet {
                 } else {
                     ((0.5 * (high - low) / self.layer_height * (1.0 + 1e-6)) as f32).max(f32::MIN_POSITIVE)
                 };
-                columns[k] = Column { slack, ..self.sample(directions[k], height) };
+                columns[k] = Column { slack, ..self.sample(height, climate) };
                 false
             });
             if open.is_empty() {
@@ -564,19 +602,24 @@ impl ProceduralPlanet {
         columns
     }
 
-    /// Whether some threshold a column of `span`-layer voxels at
-    /// `sin_latitude` is compared against lies between heights `low` and
-    /// `high` (metres), give or take rounding: a material height
+    /// Whether some threshold a column of `span`-layer voxels is compared
+    /// against lies between heights `low` and `high` (metres) or between
+    /// the two `climates`, give or take rounding: a material threshold
     /// ([`Self::surface_thresholds`]), or in layers a voxel centre
     /// (`(h + 1)·span − 1/2`) or the depth below one where dirt gives way
     /// to stone (3 layers more, `classify_depth`).
-    fn undecided(&self, low: f64, high: f64, sin_latitude: f64, span: f64) -> bool {
+    fn undecided(&self, low: f64, high: f64, climates: [Climate; 2], span: f64) -> bool {
         const ROUNDING: f64 = 1e-6;
-        let (low, high) = (low - ROUNDING, high + ROUNDING);
-        if self.surface_thresholds(sin_latitude).iter().any(|&t| low <= t && t <= high) {
+        let between = |t: f64, low: f64, high: f64| low - ROUNDING <= t && t <= high + ROUNDING;
+        let [least, most] = climates;
+        let thresholds = self.surface_thresholds(least.sin_latitude);
+        if thresholds.heights.iter().any(|&t| between(t, low, high))
+            || thresholds.continents.iter().any(|&t| between(t, least.continents, most.continents))
+            || between(thresholds.mountains, least.mountains, most.mountains)
+        {
             return true;
         }
-        self.undecided_voxels(low / self.layer_height, high / self.layer_height, span)
+        self.undecided_voxels((low - ROUNDING) / self.layer_height, (high + ROUNDING) / self.layer_height, span)
     }
 
     /// The voxel thresholds of [`Self::undecided`], heights in layers.
@@ -586,13 +629,18 @@ impl ProceduralPlanet {
 
     /// The height from the three noise sums at a point (module docs).
     fn combine(&self, continents: f64, ridges: f64, hills: f64) -> f64 {
-        let ridges = ((ridges + 1.0) * 0.5).clamp(0.0, 1.0);
-        let mask = smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND);
         let hills = (hills.clamp(-1.0, 1.0) + 1.0) * 0.5;
         let slope = if continents < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
-        let mountains = ridges.powi(MOUNTAIN_SHARPNESS) * mask;
+        let mountains = self.mountains(continents, ridges);
         self.settings.amplitude * (slope * continents + MOUNTAIN_SHARE * mountains).clamp(-1.0, 1.0)
             + self.settings.detail_amplitude * hills * (1.0 + MOUNTAIN_ROUGHNESS * mountains)
+    }
+
+    /// The mountains term of [`Self::combine`] in `[0, 1]`, from the
+    /// continents and ridges sums: it rises with each.
+    fn mountains(&self, continents: f64, ridges: f64) -> f64 {
+        let ridges = ((ridges + 1.0) * 0.5).clamp(0.0, 1.0);
+        ridges.powi(MOUNTAIN_SHARPNESS) * smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND)
     }
 
     /// Height in radial layers at fractional lattice coordinates `(i, j)`.
@@ -608,35 +656,59 @@ impl ProceduralPlanet {
     /// own.
     fn column(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> Column {
         let direction = self.column_direction(face, lod, ci, cj);
-        self.sample(direction, self.height_at(direction))
+        let [continents, ridges, hills] = self.sums_at(direction);
+        let climate = Climate { sin_latitude: direction.z, continents, mountains: self.mountains(continents, ridges) };
+        self.sample(self.combine(continents, ridges, hills), climate)
     }
 
-    /// The column in `direction` whose terrain height is `height_m` metres.
-    fn sample(&self, direction: nebula_math::DVec3, height_m: f64) -> Column {
-        Column { height: height_m / self.layer_height, surface: self.surface(height_m, direction.z), slack: 0.0 }
+    /// The column whose terrain height is `height_m` metres, in `climate`.
+    fn sample(&self, height_m: f64, climate: Climate) -> Column {
+        Column { height: height_m / self.layer_height, surface: self.surface(height_m, climate), slack: 0.0 }
     }
 
-    /// The heights (metres) at which [`Self::surface`] changes its answer:
-    /// the snow line, bare rock, sea level and the shore.
-    fn surface_thresholds(&self, sin_latitude: f64) -> [f64; 4] {
+    /// Where [`Self::surface`] changes its answer at `sin_latitude`.
+    fn surface_thresholds(&self, sin_latitude: f64) -> SurfaceThresholds {
         let amplitude = self.settings.amplitude;
-        [self.snow_line(sin_latitude), 0.35 * amplitude, 0.0, (0.001 * amplitude).max(2.0 * self.layer_height)]
+        let latitude = sin_latitude.abs().min(1.0).asin().to_degrees();
+        let bell = |centre: f64, width: f64| (-((latitude - centre) / width).powi(2)).exp();
+        // Deserts under the subtropical highs, inland; forests where it
+        // rains, in the tropics and the temperate belt, from the coasts.
+        let desert_from = DESERT_INLAND - bell(24.0, 9.0);
+        let forest_below = FOREST_INLAND * bell(0.0, 12.0).max(bell(52.0, 10.0)) - 0.1;
+        SurfaceThresholds {
+            heights: [
+                self.snow_line(sin_latitude),
+                BARE_ROCK * amplitude,
+                0.0,
+                (0.001 * amplitude).max(2.0 * self.layer_height),
+                TREE_LINE * amplitude,
+            ],
+            continents: [desert_from, forest_below],
+            mountains: ROCKY_MOUNTAINS,
+        }
     }
 
     /// The material of a column's top voxel, from its height (metres) and
-    /// latitude (`sin_latitude`, +Z is north): sea bed below sea level, sand
-    /// at the shore, grass, bare rock high up, snow above a snow line that
-    /// comes down to the sea near the poles.
-    fn surface(&self, height_m: f64, sin_latitude: f64) -> Voxel {
-        let [snow_line, bare_rock, sea_level, shore] = self.surface_thresholds(sin_latitude);
+    /// climate: snow above a snow line that comes down to the sea near the
+    /// poles, sea bed below sea level, bare rock high up and where the
+    /// mountains rise (their steep flanks: a stand-in for slope, which a
+    /// column does not know), sand at the shore and in the subtropical
+    /// deserts inland, forest in the wet belts (tropical and temperate)
+    /// below the tree line, grass elsewhere.
+    fn surface(&self, height_m: f64, climate: Climate) -> Voxel {
+        let SurfaceThresholds { heights: [snow_line, bare_rock, sea_level, shore, tree_line], continents, mountains } =
+            self.surface_thresholds(climate.sin_latitude);
+        let [desert_from, forest_below] = continents;
         if height_m > snow_line {
             Voxel::SNOW
-        } else if height_m > bare_rock {
-            Voxel::STONE
         } else if height_m < sea_level {
             Voxel::SEABED
-        } else if height_m < shore {
+        } else if height_m > bare_rock || climate.mountains > mountains {
+            Voxel::STONE
+        } else if height_m < shore || climate.continents > desert_from {
             Voxel::SAND
+        } else if height_m < tree_line && climate.continents < forest_below {
+            Voxel::FOREST
         } else {
             Voxel::GRASS
         }
@@ -851,6 +923,16 @@ fn ceil(x: f64) -> f64 {
     if truncated < x { truncated + 1.0 } else { truncated }
 }
 
+/// Shares of the amplitude: bare rock above, forest below.
+const BARE_ROCK: f64 = 0.35;
+const TREE_LINE: f64 = 0.25;
+/// The mountains term above which a column is bare rock.
+const ROCKY_MOUNTAINS: f64 = 0.3;
+/// The continents sum above which a column is desert, less the
+/// subtropical bell; and below which it is forest, times the wet belts'.
+const DESERT_INLAND: f64 = 1.2;
+const FOREST_INLAND: f64 = 0.5;
+
 /// H per unit of the continents sum below sea level (ocean depth), and
 /// above it (lowland height), shares of the amplitude: the land rises
 /// gently from its coasts, so lowlands are wide and mountains stand out.
@@ -1040,6 +1122,12 @@ mod tests {
                 let mut exact = 0;
                 for (direction, column) in directions.iter().zip(&columns) {
                     let truth = planet.height_at(*direction);
+                    let [continents, ridges, _] = planet.sums_at(*direction);
+                    let climate = Climate {
+                        sin_latitude: direction.z,
+                        continents,
+                        mountains: planet.mountains(continents, ridges),
+                    };
                     let layers = truth / planet.layer_height;
                     if column.slack == 0.0 {
                         exact += 1;
@@ -1050,8 +1138,8 @@ mod tests {
                     assert!((layers - column.height).abs() <= slack, "lod {lod}: {layers} vs {column:?}");
                     let (low, high) =
                         ((column.height - slack) * planet.layer_height, (column.height + slack) * planet.layer_height);
-                    assert!(!planet.undecided(low, high, direction.z, span), "lod {lod}: {column:?} undecided");
-                    assert_eq!(column.surface, planet.sample(*direction, truth).surface);
+                    assert!(!planet.undecided(low, high, [climate; 2], span), "lod {lod}: {column:?} undecided");
+                    assert_eq!(column.surface, planet.sample(truth, climate).surface);
                 }
                 exact_share.push(exact as f64 / columns.len() as f64);
             }

@@ -145,6 +145,53 @@ fn geometric_error_bounds_the_voxel_tops() {
     println!("worst voxel-top error / δ bound: {worst_ratio:.2} (S = {:.2})", planet.max_slope());
 }
 
+/// The top voxels of an Earth's land follow its climate: deserts only in
+/// the subtropical belts (and there only inland), forests in the wet belts
+/// (tropical and temperate) and none in the dry subtropics, rock on the
+/// mountains, snow towards the poles, sand at the shores.
+#[test]
+fn biomes_follow_latitude_coasts_and_mountains() {
+    let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    let sphere = planet.layout().sphere();
+    let mut state = 77_u64;
+    // Top materials of land columns by 10° band of latitude.
+    let mut bands = [[0_usize; 8]; 9];
+    let mut land = 0;
+    while land < 6000 {
+        let d = DVec3::new(
+            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
+            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
+            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
+        );
+        if !(0.1..=1.0).contains(&d.length()) || planet.height_at(d.normalize()) < 0.0 {
+            continue;
+        }
+        land += 1;
+        let d = d.normalize();
+        let (face, i, j) = sphere.face_coords_of(d * sphere.radius()).unwrap();
+        let top = column_top(planet, face, 0, i as u32, j as u32);
+        let voxel = planet.voxel(VoxelCoord { face, lod: 0, i: i as u32, j: j as u32, h: (top - 1) as i32 }).unwrap();
+        let band = (d.z.abs().asin().to_degrees() / 10.0) as usize;
+        bands[band.min(8)][usize::from(voxel.material())] += 1;
+    }
+    let share = |band: usize, voxel: Voxel| {
+        bands[band][usize::from(voxel.material())] as f64 / bands[band].iter().sum::<usize>().max(1) as f64
+    };
+    for (band, counts) in bands.iter().enumerate() {
+        println!("{:2}–{:2}°: {counts:?}", band * 10, band * 10 + 10);
+    }
+    // Sand inland in the subtropics only (the shore's sand is a sliver).
+    let subtropical_sand = share(2, Voxel::SAND).max(share(1, Voxel::SAND));
+    assert!(subtropical_sand > 0.04, "no subtropical deserts: {subtropical_sand}");
+    for band in [0, 4, 5, 6] {
+        assert!(share(band, Voxel::SAND) < 0.02, "sand at {band}0°: {}", share(band, Voxel::SAND));
+    }
+    assert!(share(0, Voxel::FOREST) > 0.25 && share(5, Voxel::FOREST) > 0.25, "no tropical or temperate forest");
+    assert!(share(2, Voxel::FOREST) < 0.05, "forest in the dry subtropics: {}", share(2, Voxel::FOREST));
+    assert!(share(3, Voxel::STONE) + share(4, Voxel::STONE) > 0.005, "no rock on the mountains");
+    assert!(share(8, Voxel::SNOW) > 0.9 && share(0, Voxel::SNOW) < 0.01, "snow not by latitude");
+}
+
 /// The steepest steps of H between neighbouring lattice cells, hunted
 /// where they are (high up, on the mountains: the steepest of many random
 /// places up there, then climbing from those to steeper places nearby),

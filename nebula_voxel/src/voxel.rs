@@ -14,9 +14,9 @@ impl Voxel {
     pub const STONE: Voxel = Voxel(1);
     /// A few voxels under the surface.
     pub const DIRT: Voxel = Voxel(2);
-    /// The top voxel of lowland columns.
+    /// The top voxel of open lowland columns.
     pub const GRASS: Voxel = Voxel(3);
-    /// The top voxel at the shore, just above sea level.
+    /// The top voxel at the shore, just above sea level, and of deserts.
     pub const SAND: Voxel = Voxel(4);
     /// The top voxel of high columns and of cold ones.
     pub const SNOW: Voxel = Voxel(5);
@@ -24,10 +24,13 @@ impl Voxel {
     /// over it (at every LOD, where coarse voxels round the surface down
     /// below the sea level even on land, only over this).
     pub const SEABED: Voxel = Voxel(6);
+    /// The top voxel of wooded lowland columns: the forest floor (a
+    /// renderer draws it as a canopy seen from above).
+    pub const FOREST: Voxel = Voxel(7);
 
     /// The named materials, by name (what command lines and save tools
     /// show).
-    pub const NAMED: [(&'static str, Voxel); 7] = [
+    pub const NAMED: [(&'static str, Voxel); 8] = [
         ("air", Voxel::AIR),
         ("stone", Voxel::STONE),
         ("dirt", Voxel::DIRT),
@@ -35,6 +38,7 @@ impl Voxel {
         ("sand", Voxel::SAND),
         ("snow", Voxel::SNOW),
         ("seabed", Voxel::SEABED),
+        ("forest", Voxel::FOREST),
     ];
 
     /// The voxel named `name` (case-insensitive), or `None`.
