@@ -410,5 +410,55 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
         let light = encode(surface) * opacity * transmit + encode(sky) * haze;
         return vec4<f32>(light, 1.0 - transmit * (1.0 - opacity));
     }
-    return vec4<f32>(encode(sky) * haze, haze);
+    let relief = relief_shade(vec2<i32>(pixel.xy), terrain, up);
+    return vec4<f32>(encode(sky) * haze, 1.0 - relief * (1.0 - haze));
+}
+
+// The terrain's camera-relative position at `pixel` (w: 1 where terrain
+// was drawn there, else 0).
+fn terrain_point(pixel: vec2<i32>) -> vec4<f32> {
+    let size = vec2<i32>(textureDimensions(terrain_depth));
+    let p = clamp(pixel, vec2<i32>(0), size - 1);
+    let depth = textureLoad(terrain_depth, p, 0);
+    let ndc = vec2<f32>((f32(p.x) + 0.5) / f32(size.x) * 2.0 - 1.0, 1.0 - (f32(p.y) + 0.5) / f32(size.y) * 2.0);
+    let world = frame.inv_view_proj * vec4<f32>(ndc, depth, 1.0);
+    return vec4<f32>(world.xyz / world.w, select(0.0, 1.0, depth > 0.0));
+}
+
+// Relief shading of distant terrain, 1 (none) down to 0.4: how much
+// less light the ground gets than flat ground would, with its normal
+// taken from the depth two pixels either side. Beyond the first few
+// hundred metres every voxel drawn is about a pixel (the LOD rule), so
+// each one's own normal, up or sideways, says nothing of the slope it is
+// part of; across four pixels the staircase averages out into it. Faded
+// in from where LOD-0 voxels shrink below two pixels to eight, and left
+// out across silhouettes. It can only darken (the pass blends over the
+// terrain): slopes away from the sun.
+fn relief_shade(pixel: vec2<i32>, distance: f32, up: vec3<f32>) -> f32 {
+    let voxel_pixels = frame.terrain.x * frame.params.x / max(distance, 1.0);
+    let fade = 1.0 - smoothstep(0.25, 1.0, voxel_pixels);
+    if (fade <= 0.0) {
+        return 1.0;
+    }
+    let left = terrain_point(pixel - vec2<i32>(2, 0));
+    let right = terrain_point(pixel + vec2<i32>(2, 0));
+    let above = terrain_point(pixel - vec2<i32>(0, 2));
+    let below = terrain_point(pixel + vec2<i32>(0, 2));
+    let across = right.xyz - left.xyz;
+    let down = below.xyz - above.xyz;
+    // A silhouette: a neighbour missing or far behind the others.
+    let spread = max(length(across), length(down));
+    if (left.w * right.w * above.w * below.w < 0.5 || spread > 0.05 * distance) {
+        return 1.0;
+    }
+    var n = normalize(cross(down, across));
+    if (dot(n, up) < 0.0) {
+        n = -n;
+    }
+    // Slopes steepened 2.5 times, as hill shading does: a 15° flank
+    // seen from kilometres away should read as one.
+    let tilt = n - up * dot(n, up);
+    n = normalize(up * dot(n, up) + tilt * 2.5);
+    let shade = dot(lighting(n, up), vec3<f32>(0.3, 0.5, 0.2)) / max(dot(lighting(up, up), vec3<f32>(0.3, 0.5, 0.2)), 1e-3);
+    return mix(1.0, clamp(shade, 0.4, 1.0), fade);
 }
