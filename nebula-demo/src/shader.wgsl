@@ -364,7 +364,11 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     if (sea > 0.0) {
         hit = sea;
     }
-    // Optical depth through the atmosphere, up to whatever the ray hits.
+    // Optical depth through the atmosphere, up to whatever the ray hits,
+    // or the sea-level sphere if that comes first: ground drawn below sea
+    // level over land is mostly the sag of a coarse chunk's flat quads
+    // (7.7 km at the middle of a LOD-14 chunk on an Earth), and hazing
+    // it deeper drew each chunk as a brighter bowl from orbit.
     let scale_height = SCALE_HEIGHT * radius;
     let top = radius + TOP * scale_height;
     let top_c = (height - TOP * scale_height) * (eye_radius + top);
@@ -372,7 +376,7 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     var tau = 0.0;
     if (top_disc > 0.0) {
         let start = max(-b - sqrt(top_disc), 0.0);
-        let end = min(-b + sqrt(top_disc), hit);
+        let end = min(-b + sqrt(top_disc), min(hit, sphere));
         if (end > start) {
             let step = (end - start) / 8.0;
             for (var k = 0; k < 8; k = k + 1) {
@@ -431,12 +435,17 @@ fn terrain_point(pixel: vec2<i32>) -> vec4<f32> {
 // hundred metres every voxel drawn is about a pixel (the LOD rule), so
 // each one's own normal, up or sideways, says nothing of the slope it is
 // part of; across four pixels the staircase averages out into it. Faded
-// in from where LOD-0 voxels shrink below two pixels to eight, and left
-// out across silhouettes. It can only darken (the pass blends over the
-// terrain): slopes away from the sun.
+// in from where LOD-0 voxels shrink below a pixel to a quarter of one,
+// and out where the voxels drawn (about a pixel) grow past a tenth of the
+// relief: there the ground is flat greedy quads up to a chunk wide, whose
+// tilt against the sphere is no landform. Left out across silhouettes.
+// It can only darken (the pass blends over the terrain): slopes away from
+// the sun.
 fn relief_shade(pixel: vec2<i32>, distance: f32, up: vec3<f32>) -> f32 {
     let voxel_pixels = frame.terrain.x * frame.params.x / max(distance, 1.0);
-    let fade = 1.0 - smoothstep(0.25, 1.0, voxel_pixels);
+    let pixel_metres = distance / frame.params.x;
+    let fade = (1.0 - smoothstep(0.25, 1.0, voxel_pixels))
+        * (1.0 - smoothstep(0.04 * frame.terrain.y, 0.1 * frame.terrain.y, pixel_metres));
     if (fade <= 0.0) {
         return 1.0;
     }
