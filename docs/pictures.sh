@@ -6,7 +6,7 @@ set -e
 cd "$(dirname "$0")/.."
 cargo build --release -p nebula-demo
 demo=target/release/nebula-demo
-earth="--planet earth --headless --size 960x540"
+earth="--planet earth --headless --size 960x540 --msaa on"
 $demo $earth --camera-pos=7830681,29224500,-2647007 --look-at=0,0,0 --fov 30 --sun 60,-50 \
     --screenshot docs/earth-orbit.png
 $demo $earth --camera-pos=-2853425.89,5698159.83,-144616.37 --look-at=-2921362.76,5660036.65,-77821.85 \
@@ -17,8 +17,8 @@ $demo $earth --camera-pos=-1207367.81,6252140.34,211236.78 --look-at=-1207648.18
     --sun 30,-40 --screenshot docs/earth-coast.png
 $demo $earth --camera-pos=-2901622.70,5671976.61,-85292.75 --look-at=-2914136.06,5667132.35,-85311.50 \
     --sun 6,-40 --screenshot docs/earth-sunset.png
-$demo --headless --size 960x540 --camera-pos 2500,3200,3600 --screenshot docs/orbit.png
+$demo --headless --size 960x540 --msaa on --camera-pos 2500,3200,3600 --screenshot docs/orbit.png
 rm -rf target/flight-coast
 $demo --planet earth --flight docs/flight-coast.json --fps 1 --frames-dir target/flight-coast \
-    --size 640x400 --headless
+    --size 640x400 --headless --msaa on
 python3 docs/contact_sheet.py docs/flight-coast.png 5 target/flight-coast/*.png

@@ -294,6 +294,11 @@ impl PlanetApp {
     pub fn gpu(&self) -> &Gpu {
         &self.world.resource::<GpuRes>().0
     }
+
+    /// The GPU, to change how it draws ([`Gpu::set_multisampling`]).
+    pub fn gpu_mut(&mut self) -> &mut Gpu {
+        &mut self.world.resource_mut::<GpuRes>().into_inner().0
+    }
 }
 
 /// One frame of the streamer for the current view, uploading into the GPU
