@@ -22,3 +22,7 @@ rm -rf target/flight-coast
 $demo --planet earth --flight docs/flight-coast.json --fps 1 --frames-dir target/flight-coast \
     --size 640x400 --headless --msaa on
 python3 docs/contact_sheet.py docs/flight-coast.png 5 target/flight-coast/*.png
+$demo --headless --radius 20000 --voxel-size 1.5 --seed 7 --size 640x400 --view lod \
+    --camera-pos=12008.89,12008.89,12008.89 --look-at=15496.09,8940.67,8940.67 --screenshot docs/lod-colours.png
+# docs/earth-underwater.png is the render test under_the_sea_the_view_is_water's picture:
+#   cargo test -p nebula_tests --test render under_the_sea -- then target/tmp/nebula-render-tests/under-water.png
