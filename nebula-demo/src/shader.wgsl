@@ -250,6 +250,15 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     }
     var out: TerrainOut;
     out.colour = vec4<f32>(encode(base * light), 1.0);
+    // Sea bed deeper than the sea lets light through (gpu::sea_hiding_depth:
+    // twelve extinction lengths) is never seen, and the streamer may draw
+    // it coarse (nebula_world::stream::OpaqueSea). It gets one deep-water
+    // colour, so that a pixel only partly over it (an edge, multisampled)
+    // comes out the same whichever sea bed is drawn.
+    let depth_under_sea = frame.planet.x - length(in.relative + frame.eye_high.xyz + frame.eye_low.xyz);
+    if (in.material == 6u && frame.planet.x > 1.0 && frame.sea.x < 0.5 && depth_under_sea > 12.0 * frame.planet.w) {
+        out.colour = vec4<f32>(encode(vec3<f32>(0.01, 0.05, 0.09)), 1.0);
+    }
     // The sea goes over sea bed; and over the sides of voxels taller than
     // the relief where they are below sea level: at a coarse LOD a coast
     // is a wall one voxel tall (kilometres) from the sea bed up to the
@@ -455,9 +464,13 @@ fn relief_shade(pixel: vec2<i32>, distance: f32, up: vec3<f32>) -> f32 {
     let below = terrain_point(pixel + vec2<i32>(0, 2));
     let across = right.xyz - left.xyz;
     let down = below.xyz - above.xyz;
-    // A silhouette: a neighbour missing or far behind the others.
+    // A silhouette: a neighbour missing or far behind the others; or a
+    // neighbour under the sea (its sea bed is hidden, and may be drawn
+    // coarse: it must not shade the land beside it).
     let spread = max(length(across), length(down));
-    if (left.w * right.w * above.w * below.w < 0.5 || spread > 0.05 * distance) {
+    let eye = frame.eye_high.xyz + frame.eye_low.xyz;
+    let lowest = min(min(length(left.xyz + eye), length(right.xyz + eye)), min(length(above.xyz + eye), length(below.xyz + eye)));
+    if (left.w * right.w * above.w * below.w < 0.5 || spread > 0.05 * distance || lowest < frame.planet.x) {
         return 1.0;
     }
     var n = normalize(cross(down, across));

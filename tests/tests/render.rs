@@ -739,8 +739,15 @@ fn place_with_ground(planet: &ProceduralPlanet, rng: &mut Rng, heights: std::ops
 /// Settles `shot` (no background: sky and sea drawn) with the streamer told
 /// `sea` (`None`: no sea, every leaf in detail), whatever the shot would
 /// choose, and draws it.
-fn settled_with_sea(name: &str, settings: &PlanetSettings, shot: &Shot, sea: Option<OpaqueSea>) -> Picture {
+fn settled_with_sea(
+    name: &str,
+    settings: &PlanetSettings,
+    shot: &Shot,
+    sea: Option<OpaqueSea>,
+    multisampling: bool,
+) -> Picture {
     let mut app = app(settings, shot, DrawOptions::default());
+    app.gpu_mut().set_multisampling(multisampling);
     let view = prepare_shot(&mut app, shot).expect("a view");
     app.streamer_mut().0.set_opaque_sea(sea);
     let picture = settle_and_draw(&mut app, shot, &view).expect("drawn");
@@ -754,7 +761,12 @@ fn settled_with_sea(name: &str, settings: &PlanetSettings, shot: &Shot, sea: Opt
 /// triangles), and 150 m over shallow water off a coast (a place from a fixed seed
 /// where the sea bed is 3–12 m down, so it shows through the water). And
 /// the check can fail: the same stand-ins with no sea drawn over them
-/// change the deep view.
+/// change the deep view. With one sample per pixel, and with four up to
+/// one pixel in 10,000: where the far edge of the sea bed crosses the sea's
+/// horizon inside a pixel, some of its samples see sea bed or nothing
+/// depending on which sea bed is drawn (3 pixels of 256,000 on an H100; the
+/// hidden sea bed's own colour is one deep-water colour, whichever is
+/// drawn, so elsewhere a partly covered pixel comes out the same).
 #[test]
 fn the_sea_hides_only_what_changes_no_pixel() {
     if !adapter_or_skip("sea") {
@@ -767,21 +779,27 @@ fn the_sea_hides_only_what_changes_no_pixel() {
     let mut rng = Rng(0x5EA);
     let shallow = place_with_ground(&planet, &mut rng, -12.0..-3.0);
     let deep = place_with_ground(&planet, &mut rng, -1200.0..-400.0);
-    for (name, dir, altitude, pitch) in [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)] {
+    let poses = [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)];
+    for ((name, dir, altitude, pitch), multisampling) in poses.into_iter().flat_map(|p| [(p, false), (p, true)]) {
         let (eye, look) = pose(&settings, dir, altitude, dir.cross(DVec3::Z), pitch);
         let shot = Shot { background: None, sun: Some((50.0, 30.0)), ..shot(eye, look, 60.0) };
-        let detailed = settled_with_sea(&format!("sea-{name}-detailed"), &settings, &shot, None);
-        let coarse = settled_with_sea(&format!("sea-{name}-coarse"), &settings, &shot, Some(opaque));
+        let samples = if multisampling { 4 } else { 1 };
+        let detailed =
+            settled_with_sea(&format!("sea-{name}-{samples}-detailed"), &settings, &shot, None, multisampling);
+        let coarse =
+            settled_with_sea(&format!("sea-{name}-{samples}-coarse"), &settings, &shot, Some(opaque), multisampling);
         let (before, after) = (detailed.figures.frame.triangles, coarse.figures.frame.triangles);
-        println!("{name}: {before} triangles in detail, {after} with the hidden sea bed coarse");
-        assert!(detailed.rgba == coarse.rgba, "{name}: the coarse sea bed changed the picture");
+        println!("{name}, {samples} samples: {before} triangles in detail, {after} with the hidden sea bed coarse");
+        let changed = detailed.rgba.chunks(4).zip(coarse.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+        let allowed = if multisampling { detailed.rgba.len() / 4 / 10_000 } else { 0 };
+        assert!(changed <= allowed, "{name}, {samples} samples: the coarse sea bed changed {changed} pixels");
         assert!(coarse.figures.frame.under_sea > 0, "{name}: nothing under the sea");
-        if name == "deep" {
+        if name == "deep" && !multisampling {
             assert!((after as f64) < 0.8 * before as f64, "{name}: too little saved to tell: {before} → {after}");
             // The same stand-ins where no sea is drawn over them show.
             let bare = Shot { background: Some(SENTINEL), ..shot };
-            let detailed = settled_with_sea("sea-deep-bare-detailed", &settings, &bare, None);
-            let coarse = settled_with_sea("sea-deep-bare-coarse", &settings, &bare, Some(opaque));
+            let detailed = settled_with_sea("sea-deep-bare-detailed", &settings, &bare, None, false);
+            let coarse = settled_with_sea("sea-deep-bare-coarse", &settings, &bare, Some(opaque), false);
             let changed = detailed.rgba.chunks(4).zip(coarse.rgba.chunks(4)).filter(|(a, b)| a != b).count();
             println!("without the sea drawn, the coarse sea bed changes {changed} pixels");
             assert!(changed > 1000, "the coarse sea bed should show without the sea: {changed} pixels changed");
