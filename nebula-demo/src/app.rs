@@ -243,7 +243,7 @@ impl PlanetApp {
             eye_in_sea: eye_in_sea(self.streamer().voxels().base(), view.camera.position),
             voxel_size_and_relief: {
                 let planet = self.streamer().voxels().base();
-                (planet.voxel_size(), 2.0 * planet.settings().amplitude)
+                (planet.voxel_size(), planet.relief())
             },
         };
         self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {

@@ -15,7 +15,8 @@ use nebula_meshing::{RenderMesh, drawn_ranges};
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Where the terrain pass drew sea bed (1) or not (0), for the sky pass: the
-/// sea is drawn over sea bed only, never over land that a coarse LOD drew
+/// sea is drawn over sea bed only (and, at LODs whose voxels are taller
+/// than the relief, over the sides under sea level), never over land that a coarse LOD drew
 /// below sea level.
 const SEA_MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// Samples per pixel of the shaded view with its sky: voxels a pixel wide
@@ -64,7 +65,7 @@ struct FrameUniform {
     /// from f64), w: the water's extinction length ([`water_extinction`]).
     planet: [f32; 4],
     /// x: 1 where the eye is in the sea (under its surface, over sea
-    /// bed), else 0.
+    /// bed), else 0; y: [`sea_hiding_depth`].
     sea: [f32; 4],
     /// xyz: the eye's world position modulo `TINT_PERIOD` (from f64), w:
     /// that period: camera-relative positions plus this are world
@@ -378,14 +379,7 @@ impl Gpu {
         // multisampled; `textureLoad`'s last argument is then the sample).
         let smooth_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("nebula shader, multisampled depth"),
-            source: wgpu::ShaderSource::Wgsl(
-                include_str!("shader.wgsl")
-                    .replace(
-                        "var terrain_depth: texture_depth_2d;",
-                        "var terrain_depth: texture_depth_multisampled_2d;",
-                    )
-                    .into(),
-            ),
+            source: wgpu::ShaderSource::Wgsl(multisampled_depth_shader().into()),
         });
         let make_sky_pipeline = |shader: &wgpu::ShaderModule, sky_layout: &wgpu::BindGroupLayout| {
             let sky_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -420,10 +414,13 @@ impl Gpu {
             })
         };
         let sky_pipeline = make_sky_pipeline(&shader, &sky_layout);
-        let multisamples = |format: wgpu::TextureFormat| {
-            adapter.get_texture_format_features(format).flags.sample_count_supported(SMOOTH_SAMPLES)
+        let multisamples = |format: wgpu::TextureFormat, resolved: bool| {
+            let flags = adapter.get_texture_format_features(format).flags;
+            flags.sample_count_supported(SMOOTH_SAMPLES)
+                && (!resolved || flags.contains(wgpu::TextureFormatFeatureFlags::MULTISAMPLE_RESOLVE))
         };
-        let smooth = [color_format, SEA_MASK_FORMAT, DEPTH_FORMAT].into_iter().all(multisamples).then(|| {
+        let formats = [(color_format, true), (SEA_MASK_FORMAT, true), (DEPTH_FORMAT, false)];
+        let smooth = formats.into_iter().all(|(format, resolved)| multisamples(format, resolved)).then(|| {
             let sky_layout = make_sky_layout(true);
             SmoothPipelines {
                 terrain: make_pipeline(
@@ -552,7 +549,7 @@ impl Gpu {
                 (frame.eye.length() - radius) as f32,
                 water_extinction(radius) as f32,
             ],
-            sea: [if frame.eye_in_sea { 1.0 } else { 0.0 }, 0.0, 0.0, 0.0],
+            sea: [if frame.eye_in_sea { 1.0 } else { 0.0 }, sea_hiding_depth(radius) as f32, 0.0, 0.0],
             tint_origin: {
                 let origin = frame.eye.to_array().map(|c| c.rem_euclid(TINT_PERIOD) as f32);
                 [origin[0], origin[1], origin[2], TINT_PERIOD as f32]
@@ -762,6 +759,8 @@ impl Gpu {
             ],
         });
         self.depth = Some(DepthTarget { _texture: texture, view, _mask: mask, sea_mask, size, sky_group });
+        // Their sky bind group reads the sea mask just replaced.
+        self.smooth_targets = None;
     }
 
     /// The multisampled colour, sea mask and depth at `size`, and the sky
@@ -827,6 +826,16 @@ struct SmoothTargets {
     /// Reads `depth_view` and the resolved sea mask.
     sky_group: wgpu::BindGroup,
     size: (u32, u32),
+}
+
+/// The shader with the terrain's depth declared multisampled, for the sky
+/// pass over a multisampled terrain (`textureLoad`'s last argument is then
+/// the sample, 0, where it was the mip level, 0).
+fn multisampled_depth_shader() -> String {
+    const DECLARATION: &str = "var terrain_depth: texture_depth_2d;";
+    let source = include_str!("shader.wgsl");
+    debug_assert!(source.contains(DECLARATION), "shader.wgsl no longer declares {DECLARATION}");
+    source.replace(DECLARATION, "var terrain_depth: texture_depth_multisampled_2d;")
 }
 
 fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u64) -> (wgpu::Buffer, wgpu::BindGroup) {
@@ -979,4 +988,18 @@ pub fn view_projection(forward: DVec3, up: DVec3, fov_y_degrees: f32, aspect: f3
     let (forward, _, up) = nebula_math::view_basis(forward, up);
     let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward.as_vec3(), up.as_vec3());
     glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y_degrees.to_radians(), aspect, 0.1) * view
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The multisampled sky pass's shader is the shader with its depth
+    /// declaration replaced: if the declaration changes, so must this.
+    #[test]
+    fn the_sky_pass_has_a_multisampled_depth_variant() {
+        let source = multisampled_depth_shader();
+        assert!(source.contains("var terrain_depth: texture_depth_multisampled_2d;"));
+        assert!(!source.contains("texture_depth_2d;"));
+    }
 }

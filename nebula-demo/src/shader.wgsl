@@ -16,7 +16,8 @@ struct Frame {
     // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: metres
     // of water that dim what is under them by a factor e (gpu::water_extinction).
     planet: vec4<f32>,
-    // x: 1 where the eye is in the sea (gpu::FrameParams::eye_in_sea).
+    // x: 1 where the eye is in the sea (gpu::FrameParams::eye_in_sea), y:
+    // metres of water that hide what lies under them (gpu::sea_hiding_depth).
     sea: vec4<f32>,
     // xyz: the eye's world position modulo w (gpu::TINT_PERIOD).
     tint_origin: vec4<f32>,
@@ -153,9 +154,12 @@ struct TerrainOut {
     @location(1) sea: f32,
 };
 
+// The colour of deep water under the sky, before its light.
+const DEEP_WATER: vec3<f32> = vec3<f32>(0.01, 0.05, 0.09);
+
 // A hash of an integer lattice point to [0, 1).
 fn hash(c: vec3<i32>) -> f32 {
-    var h = u32(c.x) * 0x8da6b343u ^ u32(c.y) * 0xd8163841u ^ u32(c.z) * 0xcb1ab31fu;
+    var h = (u32(c.x) * 0x8da6b343u) ^ (u32(c.y) * 0xd8163841u) ^ (u32(c.z) * 0xcb1ab31fu);
     h = (h ^ (h >> 15u)) * 0x2c1b3c6du;
     h = (h ^ (h >> 12u)) * 0x297a2d39u;
     return f32(h ^ (h >> 15u)) / 4294967296.0;
@@ -256,8 +260,8 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     // colour, so that a pixel only partly over it (an edge, multisampled)
     // comes out the same whichever sea bed is drawn.
     let depth_under_sea = frame.planet.x - length(in.relative + frame.eye_high.xyz + frame.eye_low.xyz);
-    if (in.material == 6u && frame.planet.x > 1.0 && frame.sea.x < 0.5 && depth_under_sea > 12.0 * frame.planet.w) {
-        out.colour = vec4<f32>(encode(vec3<f32>(0.01, 0.05, 0.09)), 1.0);
+    if (in.material == 6u && frame.planet.x > 1.0 && frame.sea.x < 0.5 && depth_under_sea > frame.sea.y) {
+        out.colour = vec4<f32>(encode(DEEP_WATER), 1.0);
     }
     // The sea goes over sea bed; and over the sides of voxels taller than
     // the relief where they are below sea level: at a coarse LOD a coast
@@ -355,7 +359,9 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     }
     // The sea: over sea bed, where the ray meets the sea-level sphere (or
     // at the sea bed itself, where a coarse LOD drew it above); and where
-    // the ray meets that sphere with no terrain drawn. Never over land, even
+    // the ray meets that sphere with no terrain drawn (the terrain pass also
+    // marks the sides of voxels taller than the relief under sea level:
+    // coasts at coarse LODs). Never over land, even
     // land a coarse LOD rounded down below sea level.
     var sea = -1.0;
     let sea_bed = textureLoad(sea_mask, vec2<i32>(pixel.xy), 0).r > 0.5;
@@ -412,7 +418,7 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
         let facing = max(dot(-dir, normal), 0.0);
         let fresnel = 0.02 + 0.98 * pow(1.0 - facing, 5.0);
         let lit = max(dot(normal, frame.sun.xyz), 0.0);
-        let water = vec3<f32>(0.01, 0.05, 0.09) * (0.3 + 0.7 * lit);
+        let water = DEEP_WATER * (0.3 + 0.7 * lit);
         let glint = vec3<f32>(1.0, 0.9, 0.7) * pow(max(dot(reflected, frame.sun.xyz), 0.0), 300.0) * 2.0 * lit;
         let surface = mix(water, sky_colour(reflected, normal), fresnel) + glint;
         // Shallow water shows the sea floor.

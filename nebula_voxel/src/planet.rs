@@ -3,14 +3,14 @@
 //! # Terrain
 //!
 //! The surface height `H(d)` (metres above the base radius, for a unit
-//! direction `d`) is a blend of two noise fields evaluated on the sphere, so
+//! direction `d`) is a blend of three noise sums evaluated on the sphere, so
 //! it is seamless across cube faces:
 //!
 //! ```text
 //!   continents = fbm(d · radius / feature_size)          (Perlin, persistence 0.45)
 //!   ridges     = (ridged_multi(d · radius / mountain_size) + 1) / 2          (in [0, 1])
 //!   hills      = (fbm(d · radius / detail_size) + 1) / 2   (Perlin, persistence 0.5)
-//!   mountains  = ridges³ · smoothstep(0.12, 0.32, continents)                (in [0, 1])
+//!   mountains  = ridges³ · smoothstep(0.1, 0.4, continents)                  (in [0, 1])
 //!   H = amplitude · clamp(slope·continents + 0.6·mountains, −1, 1)
 //!     + detail_amplitude · hills · (1 + 6·mountains)
 //! ```
@@ -82,7 +82,7 @@
 //!
 //! A column's bounds ([`VoxelSource::surface_bounds`]) hold H over its
 //! whole patch. S times half the patch is tight for a small patch and
-//! hopeless for a large one (±4.4 km at LOD 9 on an Earth, where the
+//! hopeless for a large one (kilometres either way at LOD 9 on an Earth, where the
 //! terrain varies by hundreds of metres), so the bounds come from the
 //! noise instead: each sum's range over the ball the patch lies in
 //! ([`Fractal::range_near`]: every octave's value at the centre, give or
@@ -253,7 +253,7 @@ struct HeightCache {
 type HeightEntries = (HashMap<ChunkColumn, Arc<[Column]>>, VecDeque<ChunkColumn>);
 
 /// One voxel column: its height in layers and the material of its top
-/// voxel (by height and latitude, see [`ProceduralPlanet::surface`]).
+/// voxel (by height and climate, see [`ProceduralPlanet::surface`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Column {
     /// H in layers, or within `slack` of it.
@@ -446,7 +446,7 @@ impl ProceduralPlanet {
     ///
     /// Why: S times the distance (the five-sample bound) grows without end
     /// with a column's size, while H's range is that of the octaves coarse
-    /// enough to matter; at LOD 9 on an Earth S allows ±4.4 km where the
+    /// enough to matter; at LOD 9 on an Earth S allows kilometres where the
     /// terrain varies by hundreds of metres.
     fn sum_ranges(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> SumRanges {
         let sphere = self.layout.sphere();
@@ -494,9 +494,9 @@ impl ProceduralPlanet {
     fn slope_within(&self, ranges: SumRanges) -> f64 {
         let [continents_step, ridges_step, hills_step] = self.sum_steps;
         let (continents_low, continents_high) = ranges.continents;
-        let ridges = ((ranges.ridges.1 + 1.0) * 0.5).clamp(0.0, 1.0);
-        let hills = ((ranges.hills.1.clamp(-1.0, 1.0)) + 1.0) * 0.5;
-        let mask = smoothstep((continents_high - MOUNTAIN_START) / MOUNTAIN_INLAND);
+        let ridges = unit_ridges(ranges.ridges.1);
+        let hills = unit_hills(ranges.hills.1);
+        let mask = mountain_mask(continents_high);
         // smoothstep rises by at most 1.5 over its width, and not at all
         // below it; the ridges in [0, 1] step by half the sum's.
         let mask_step = if mask > 0.0 { 1.5 / MOUNTAIN_INLAND * continents_step } else { 0.0 };
@@ -629,7 +629,7 @@ impl ProceduralPlanet {
 
     /// The height from the three noise sums at a point (module docs).
     fn combine(&self, continents: f64, ridges: f64, hills: f64) -> f64 {
-        let hills = (hills.clamp(-1.0, 1.0) + 1.0) * 0.5;
+        let hills = unit_hills(hills);
         let slope = if continents < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
         let mountains = self.mountains(continents, ridges);
         self.settings.amplitude * (slope * continents + MOUNTAIN_SHARE * mountains).clamp(-1.0, 1.0)
@@ -639,8 +639,7 @@ impl ProceduralPlanet {
     /// The mountains term of [`Self::combine`] in `[0, 1]`, from the
     /// continents and ridges sums: it rises with each.
     fn mountains(&self, continents: f64, ridges: f64) -> f64 {
-        let ridges = ((ridges + 1.0) * 0.5).clamp(0.0, 1.0);
-        ridges.powi(MOUNTAIN_SHARPNESS) * smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND)
+        unit_ridges(ridges).powi(MOUNTAIN_SHARPNESS) * mountain_mask(continents)
     }
 
     /// Height in radial layers at fractional lattice coordinates `(i, j)`.
@@ -887,8 +886,8 @@ impl ProceduralPlanet {
             for (values, steepest) in values.iter().zip(&mut steepest) {
                 *steepest = steepest.max(step_and_largest(*values).0);
             }
-            cubes.push(step_and_largest(values[1].map(|r| ((r + 1.0) * 0.5).clamp(0.0, 1.0).powi(MOUNTAIN_SHARPNESS))));
-            hills.push(step_and_largest(values[2].map(|h| (h.clamp(-1.0, 1.0) + 1.0) * 0.5)));
+            cubes.push(step_and_largest(values[1].map(|r| unit_ridges(r).powi(MOUNTAIN_SHARPNESS))));
+            hills.push(step_and_largest(values[2].map(unit_hills)));
         }
         let steps = steepest.map(|step| step * 1.5);
         // As `slope_within`: mountains = cube · mask steps by at most
@@ -903,6 +902,14 @@ impl ProceduralPlanet {
             * (OCEAN_SLOPE.max(LAND_SLOPE) * steps[0] + MOUNTAIN_SHARE * mountains_step)
             + self.settings.detail_amplitude * detail;
         (steps, slope / self.layer_height)
+    }
+
+    /// The most the terrain height varies anywhere, metres: from the
+    /// lowest H can be to the highest (what a renderer's relief-dependent
+    /// effects scale with).
+    #[must_use]
+    pub fn relief(&self) -> f64 {
+        self.highest() - self.lowest()
     }
 
     /// The highest H can be, metres above the base radius (`combine`).
@@ -951,6 +958,22 @@ const MOUNTAIN_ROUGHNESS: f64 = 6.0;
 /// continents' cores, lowland around them.
 const MOUNTAIN_START: f64 = 0.1;
 const MOUNTAIN_INLAND: f64 = 0.3;
+
+/// The ridges sum mapped into `[0, 1]` (`combine`): rises with it.
+fn unit_ridges(ridges: f64) -> f64 {
+    ((ridges + 1.0) * 0.5).clamp(0.0, 1.0)
+}
+
+/// The hills sum mapped into `[0, 1]` (`combine`): rises with it.
+fn unit_hills(hills: f64) -> f64 {
+    (hills.clamp(-1.0, 1.0) + 1.0) * 0.5
+}
+
+/// How far the mountains have come in from the coast, in `[0, 1]`, from
+/// the continents sum: rises with it.
+fn mountain_mask(continents: f64) -> f64 {
+    smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND)
+}
 
 fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
@@ -1059,7 +1082,7 @@ impl VoxelSource for ProceduralPlanet {
         let span = self.layout.voxel_span(lod) as f64;
         // Or, past some LOD, the whole relief: no top is further from
         // another than that (module docs).
-        let relief = (self.highest() - self.lowest()) / self.layer_height;
+        let relief = self.relief() / self.layer_height;
         (span + (2.0 * self.max_slope * (span - 1.0)).min(relief)) * self.layer_height
     }
 }
