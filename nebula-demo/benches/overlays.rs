@@ -39,9 +39,7 @@ fn overlays(c: &mut Criterion) {
     let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
     let eye = DVec3::new(0.35, 0.55, 0.76).normalize() * settings.radius * 2.6;
     let shot = Shot { background: None, ..Shot::looking_at(eye, DVec3::ZERO, SIZE) };
-    let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, shot_view(&shot).expect("view")).expect("app");
-    render_app(&mut app, &shot).expect("settles");
-    let target = Offscreen::new(app.gpu(), SIZE).expect("target");
+    let (mut app, target) = settled(planet, gpu, &shot);
     let mut hud = Hud::new(app.gpu(), SIZE, app.gpu().color_format).expect("HUD");
     hud.set_text(
         "16.4 ms/frame\n5266 chunks, 948367 triangles\n0 meshing jobs\nLOD 3 to 18\naltitude 4200 m, 0 m/s\n\
@@ -50,18 +48,7 @@ fn overlays(c: &mut Criterion) {
     );
     let mut group = c.benchmark_group("overlays_640x400");
     group.sample_size(20);
-    group.bench_function("terrain_only", |b| {
-        b.iter(|| {
-            app.draw(&target.view, SIZE, Some([0, 0, 0]), DebugView::Shaded);
-            wait(&app);
-        });
-    });
-    group.bench_function("terrain_and_sky", |b| {
-        b.iter(|| {
-            app.draw(&target.view, SIZE, None, DebugView::Shaded);
-            wait(&app);
-        });
-    });
+    terrain_with_and_without_sky(&mut group, "", &mut app, &target);
     group.bench_function("hud", |b| {
         b.iter(|| {
             hud.draw(app.gpu(), &target.view).expect("HUD drawn");
@@ -83,25 +70,37 @@ fn overlays(c: &mut Criterion) {
     let eye = DVec3::new(-2_853_425.89, 5_698_159.83, -144_616.37);
     let look = DVec3::new(-2_921_362.76, 5_660_036.65, -77_821.85);
     let shot = Shot { background: None, sun: Some((30.0, -70.0)), ..Shot::looking_at(eye, look, SIZE) };
-    let gpu = headless_gpu().expect("adapter, as above");
-    let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, shot_view(&shot).expect("view")).expect("app");
-    render_app(&mut app, &shot).expect("settles");
-    let target = Offscreen::new(app.gpu(), SIZE).expect("target");
+    let (mut app, target) = settled(planet, headless_gpu().expect("adapter, as above"), &shot);
     let mut group = c.benchmark_group("overlays_640x400");
     group.sample_size(20);
-    group.bench_function("earth_terrain_only", |b| {
-        b.iter(|| {
-            app.draw(&target.view, SIZE, Some([0, 0, 0]), DebugView::Shaded);
-            wait(&app);
-        });
-    });
-    group.bench_function("earth_terrain_and_sky", |b| {
-        b.iter(|| {
-            app.draw(&target.view, SIZE, None, DebugView::Shaded);
-            wait(&app);
-        });
-    });
+    terrain_with_and_without_sky(&mut group, "earth_", &mut app, &target);
     group.finish();
+}
+
+/// `planet` settled for `shot`, and a target to draw it into again.
+fn settled(planet: ProceduralPlanet, gpu: nebula_demo::gpu::Gpu, shot: &Shot) -> (PlanetApp, Offscreen) {
+    let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, shot_view(shot).expect("view")).expect("app");
+    render_app(&mut app, shot).expect("settles");
+    let target = Offscreen::new(app.gpu(), SIZE).expect("target");
+    (app, target)
+}
+
+/// `{prefix}terrain_only` (over a background: no sky pass) and
+/// `{prefix}terrain_and_sky`.
+fn terrain_with_and_without_sky(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    prefix: &str,
+    app: &mut PlanetApp,
+    target: &Offscreen,
+) {
+    for (name, background) in [("terrain_only", Some([0, 0, 0])), ("terrain_and_sky", None)] {
+        group.bench_function(format!("{prefix}{name}"), |b| {
+            b.iter(|| {
+                app.draw(&target.view, SIZE, background, DebugView::Shaded);
+                wait(app);
+            });
+        });
+    }
 }
 
 criterion_group!(benches, overlays);
