@@ -520,7 +520,7 @@ fn live_edits_show_within_frames_and_no_frame_has_a_hole() {
     let stale_at_start = app.stale_chunks();
     let (after, frames) = settle_checking_every_frame(&mut app, &shot, "the edit");
     write_png(&folder().join("live-edit.png"), &after.rgba, after.size).expect("png written");
-    let changed = before.rgba.chunks(4).zip(after.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+    let changed = changed_pixels(&before.rgba, &after.rgba);
     println!(
         "live edit: {} dirty chunks, {} drawn ones kept until re-meshed, settled after {frames} frames, {changed} pixels changed",
         applied.dirty.len(),
@@ -528,7 +528,7 @@ fn live_edits_show_within_frames_and_no_frame_has_a_hole() {
     );
     assert!(changed > 2_000, "the edit barely shows: {changed} pixels changed");
     let fresh = render_app(&mut new_app(&world), &shot).expect("renders");
-    let differ = fresh.rgba.chunks(4).zip(after.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+    let differ = changed_pixels(&fresh.rgba, &after.rgba);
     assert!(differ == 0, "the live-edited view differs from a fresh start on the edited world in {differ} pixels");
 }
 
@@ -632,7 +632,7 @@ fn a_shaft_dug_against_a_lod_seam_opens_no_hole() {
     // At a seam the LOD-0 chunk is nearly morphed into its parent, where a
     // one-voxel shaft shows only if it is a coarse voxel's far corner: it
     // may show as a few pixels or not at all, as the coarser LOD draws it.
-    let changed = before.rgba.chunks(4).zip(after.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+    let changed = changed_pixels(&before.rgba, &after.rgba);
     println!(
         "seam shaft: 6 voxels dug {:.0} m away at a LOD-0 side against a coarser chunk, {stale} drawn chunks re-meshed, settled after {frames} frames, {changed} pixels changed",
         (seam.point - eye).length()
@@ -725,6 +725,11 @@ fn culled_back_sides_change_no_pixel() {
     }
 }
 
+/// How many pixels of two same-sized RGBA pictures differ.
+fn changed_pixels(a: &[u8], b: &[u8]) -> usize {
+    a.chunks(4).zip(b.chunks(4)).filter(|(a, b)| a != b).count()
+}
+
 /// A random direction (away from the poles) whose ground height lies in
 /// `heights`, metres.
 fn place_with_ground(planet: &ProceduralPlanet, rng: &mut Rng, heights: std::ops::Range<f64>) -> DVec3 {
@@ -790,7 +795,7 @@ fn the_sea_hides_only_what_changes_no_pixel() {
             settled_with_sea(&format!("sea-{name}-{samples}-coarse"), &settings, &shot, Some(opaque), multisampling);
         let (before, after) = (detailed.figures.frame.triangles, coarse.figures.frame.triangles);
         println!("{name}, {samples} samples: {before} triangles in detail, {after} with the hidden sea bed coarse");
-        let changed = detailed.rgba.chunks(4).zip(coarse.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+        let changed = changed_pixels(&detailed.rgba, &coarse.rgba);
         let allowed = if multisampling { detailed.rgba.len() / 4 / 10_000 } else { 0 };
         assert!(changed <= allowed, "{name}, {samples} samples: the coarse sea bed changed {changed} pixels");
         assert!(coarse.figures.frame.under_sea > 0, "{name}: nothing under the sea");
@@ -800,7 +805,7 @@ fn the_sea_hides_only_what_changes_no_pixel() {
             let bare = Shot { background: Some(SENTINEL), ..shot };
             let detailed = settled_with_sea("sea-deep-bare-detailed", &settings, &bare, None, false);
             let coarse = settled_with_sea("sea-deep-bare-coarse", &settings, &bare, Some(opaque), false);
-            let changed = detailed.rgba.chunks(4).zip(coarse.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+            let changed = changed_pixels(&detailed.rgba, &coarse.rgba);
             println!("without the sea drawn, the coarse sea bed changes {changed} pixels");
             assert!(changed > 1000, "the coarse sea bed should show without the sea: {changed} pixels changed");
         }
@@ -886,7 +891,7 @@ fn multisampling_smooths_the_shaded_view_and_leaves_crack_checks_alone() {
             pictures.push(render_app(&mut app, &shot).expect("renders"));
         }
         let (one, four) = (&pictures[0].rgba, &pictures[1].rgba);
-        let changed = one.chunks(4).zip(four.chunks(4)).filter(|(a, b)| a != b).count();
+        let changed = changed_pixels(one, four);
         let mean_shift =
             one.iter().zip(four).map(|(&a, &b)| f64::from(a) - f64::from(b)).sum::<f64>() / one.len() as f64;
         let pixels = one.len() / 4;
