@@ -214,7 +214,9 @@ impl FlightReport {
                     "chunks": f.figures.frame.chunks,
                     "triangles": f.figures.frame.triangles,
                     "stand_ins": f.figures.frame.stand_ins,
+                    "max_stand_in_levels": f.figures.frame.max_stand_in_levels,
                     "jobs_in_flight": f.figures.frame.jobs_in_flight,
+                    "prefetch_jobs": f.figures.frame.prefetch_jobs,
                     "step_ms": f.step_ms,
                     "draw_ms": f.figures.draw_ms,
                     "check_ms": f.figures.check_ms,
@@ -224,9 +226,11 @@ impl FlightReport {
         let worst = self.worst_frame().map(
             |(i, f)| serde_json::json!({ "frame": i, "time_s": f.time_s, "crack_pixels": f.figures.crack_pixels }),
         );
+        let coarsest = self.frames.iter().map(|f| f.figures.frame.max_stand_in_levels).max();
         serde_json::json!({
             "adapter": self.adapter,
             "first_frame_ms": self.first_frame_ms,
+            "max_stand_in_levels": coarsest,
             "frame_count": self.frames.len(),
             "worst_frame": worst,
             "frames": frames,

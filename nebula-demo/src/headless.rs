@@ -375,6 +375,8 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "skirt_triangles": f.skirt_triangles,
         "skirt_triangles_held": f.skirt_triangles_held,
         "stand_ins": f.stand_ins,
+        "max_stand_in_levels": f.max_stand_in_levels,
+        "prefetch_jobs": f.prefetch_jobs,
         "behind_horizon": f.behind_horizon,
         "under_sea": f.under_sea,
         "lod_histogram": histogram,

@@ -197,6 +197,19 @@ impl LodTree {
         leaves
     }
 
+    /// The leaves of the drawn tree, in no particular order (no sort, no
+    /// copy: for per-frame walks over the whole tree).
+    pub fn leaf_columns(&self) -> impl Iterator<Item = ChunkColumn> + '_ {
+        self.leaves.keys().copied()
+    }
+
+    /// The radial chunk layers that can hold surface of any node of the
+    /// tree (leaf or split), from the bounds it already holds.
+    #[must_use]
+    pub fn node_layers(&self, column: ChunkColumn) -> Option<std::ops::RangeInclusive<i32>> {
+        self.nodes.get(&column).map(|node| node.layers.0..=node.layers.1)
+    }
+
     /// The neighbour relations of a leaf, by [`FaceDirection`], as the
     /// mesher takes them.
     #[must_use]

@@ -50,7 +50,7 @@ mod sse;
 
 pub use error::MathError;
 pub use face::{CubeCorner, CubeFace, EdgeNeighbor, FaceDirection, FaceEdge};
-pub use glam::{DVec3, I64Vec3, IVec3, Vec3};
+pub use glam::{DQuat, DVec3, I64Vec3, IVec3, Vec3};
 pub use lattice::{Cubesphere, LatticePoint, MAX_RESOLUTION, ray_sphere, relative_position, view_basis};
 pub use sphere_map::{SphereMap, area_distortion};
 

@@ -390,8 +390,9 @@ mod streaming {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
     use nebula_lod::{Camera, LodSettings};
-    use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet};
+    use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, VoxelSource};
 
+    use super::unit;
     use crate::stream::{MeshHandle, Streamer};
 
     /// A renderer's handle that counts the live ones.
@@ -466,5 +467,197 @@ mod streaming {
         );
         drop(streamer);
         assert_eq!(live.load(Ordering::SeqCst), 0, "handles outlived the streamer");
+    }
+
+    /// What a hold-then-turn showed: the worst frame of the turn.
+    struct Turn {
+        /// Triangles of the settled view before the turn and after it.
+        settled: (usize, usize),
+        /// Fewest triangles drawn in a frame of the turn.
+        fewest: usize,
+        /// Coarsest stand-in of a frame of the turn, LODs above its leaf.
+        coarsest: u8,
+    }
+
+    /// Settles the view from `eye` looking along `forward`, holds it 400
+    /// frames (until prefetching is done, with it on), then turns 120° about
+    /// the radial up in 15 frames of 33 ms (0.5 s at 30 fps) and settles
+    /// again.
+    fn hold_then_turn(
+        planet: &Arc<nebula_voxel::EditedSource<ProceduralPlanet>>,
+        eye: DVec3,
+        forward: DVec3,
+        prefetch: bool,
+    ) -> Turn {
+        let up = eye.normalize();
+        let camera = |angle: f64| {
+            let f = nebula_math::DQuat::from_axis_angle(up, angle) * forward;
+            Camera { position: eye, forward: f, up, aspect: 1.6 }
+        };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(planet.clone(), lod, camera(0.0), 2, &mut { upload }).unwrap();
+        streamer.cache.prefetch = prefetch;
+        let settle = |streamer: &mut Streamer<_, Sized>, angle: f64| {
+            for frames in 0.. {
+                streamer.update(camera(angle), &mut { upload });
+                if streamer.settled() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                assert!(frames < 20_000, "did not settle");
+            }
+            streamer.figures().triangles
+        };
+        let before = settle(&mut streamer, 0.0);
+        let mut held = 0;
+        while held < 400 || (prefetch && !streamer.prefetched()) {
+            streamer.update(camera(0.0), &mut { upload });
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            held += 1;
+            assert!(held < 40_000, "prefetching never ended");
+        }
+        let (mut fewest, mut coarsest) = (usize::MAX, 0);
+        let turn = 120f64.to_radians();
+        for frame in 1..=15 {
+            streamer.update(camera(turn * f64::from(frame) / 15.0), &mut { upload });
+            let figures = streamer.figures();
+            assert_eq!(figures.holes, 0);
+            fewest = fewest.min(figures.triangles);
+            coarsest = coarsest.max(figures.max_stand_in_levels);
+            std::thread::sleep(std::time::Duration::from_millis(33));
+        }
+        let after = settle(&mut streamer, turn);
+        Turn { settled: (before, after), fewest, coarsest }
+    }
+
+    /// A mesh handle that only knows its size.
+    struct Sized(u64);
+
+    impl MeshHandle for Sized {
+        fn bytes(&self) -> u64 {
+            self.0
+        }
+    }
+
+    #[test]
+    fn a_view_held_then_turned_keeps_its_detail() {
+        // Random poses over Earth's land, 200 m to 2 km over the ground,
+        // looking 5-25 degrees down: after standing still past the cache's
+        // ageing (300 frames) and turning 120 degrees in half a second, no
+        // frame draws a stand-in more than STAND_IN_LEVEL_STEP LODs above
+        // its leaf or less than 40 % of the settled views' triangles. With
+        // prefetching off (what main did), the same turn flashes to
+        // coarse stand-ins: the check can tell.
+        let planet =
+            Arc::new(nebula_voxel::EditedSource::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap()));
+        let mut state = 0x7u64;
+        let mut poses = Vec::new();
+        while poses.len() < 2 {
+            let direction = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
+            let Some(up) = direction.try_normalize() else { continue };
+            let ground = planet.base().surface_point(up);
+            if ground.length() < planet.base().settings().radius + 20.0 {
+                continue; // the sea: an opaque sea is not what this checks
+            }
+            let eye = ground + up * (200.0 + 1_800.0 * unit(&mut state));
+            let east = up.any_orthonormal_vector();
+            let heading = nebula_math::DQuat::from_axis_angle(up, std::f64::consts::TAU * unit(&mut state)) * east;
+            let down = (5.0 + 20.0 * unit(&mut state)).to_radians();
+            poses.push((eye, heading * down.cos() - up * down.sin()));
+        }
+        for (n, &(eye, forward)) in poses.iter().enumerate() {
+            let turn = hold_then_turn(&planet, eye, forward, true);
+            let least = turn.settled.0.min(turn.settled.1);
+            println!(
+                "pose {n}: settled {} / {} triangles, turn: fewest {} ({:.0} %), coarsest stand-in {} LODs up",
+                turn.settled.0,
+                turn.settled.1,
+                turn.fewest,
+                100.0 * turn.fewest as f64 / least as f64,
+                turn.coarsest
+            );
+            assert!(
+                turn.coarsest <= crate::stream::STAND_IN_LEVEL_STEP,
+                "pose {n}: stand-in {} LODs up",
+                turn.coarsest
+            );
+            assert!(turn.fewest * 10 >= least * 4, "pose {n}: {} triangles of {least}", turn.fewest);
+        }
+        let (eye, forward) = poses[0];
+        let control = hold_then_turn(&planet, eye, forward, false);
+        println!(
+            "prefetch off: fewest {} of {} triangles, coarsest stand-in {} LODs up",
+            control.fewest, control.settled.1, control.coarsest
+        );
+        assert!(control.coarsest > crate::stream::STAND_IN_LEVEL_STEP, "the control did not flash");
+    }
+
+    #[test]
+    fn a_tower_that_adds_a_chunk_layer_keeps_its_column_on_screen() {
+        // A tower 50 voxels tall on the ground in view crosses a chunk
+        // layer boundary: its column gains a layer. The column stays drawn
+        // (its old layers) until the new layer is meshed, so no frame draws
+        // it, or the face, through a coarse stand-in.
+        let settings = PlanetSettings::small(7);
+        let mut world = crate::World::open(settings, None).unwrap();
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = world.source().base().surface_point(up);
+        let size = world.source().base().voxel_size();
+        let side = up.any_orthonormal_vector();
+        let eye = ground + up * 30.0 - side * 80.0;
+        let camera = Camera { position: eye, forward: ground + up * 20.0 - eye, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+        for frames in 0.. {
+            streamer.update(camera, &mut { upload });
+            if streamer.settled() && frames > 310 {
+                break; // past the cache's ageing too
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(frames < 20_000, "did not settle");
+        }
+        let before = streamer.figures().triangles;
+        let layout = world.source().layout();
+        let column = layout.chunk_of(layout.voxel_at(ground).unwrap()).column();
+        let layers_before = world.source().surface_chunk_layers(column).unwrap();
+        let half = DVec3::splat(1.5 * size);
+        let top = ground + up * 50.0 * size;
+        let applied = world
+            .apply(&[crate::Edit::Box {
+                min: ground.min(top) - half,
+                max: ground.max(top) + half,
+                voxel: nebula_voxel::Voxel::STONE,
+            }])
+            .unwrap();
+        let layers_after = world.source().surface_chunk_layers(column).unwrap();
+        assert!(
+            layers_after.end() > layers_before.end(),
+            "the tower added no layer: {layers_before:?} -> {layers_after:?}"
+        );
+        streamer.set_voxels(world.voxels(), &applied.dirty).unwrap();
+        let mut frames = 0;
+        loop {
+            streamer.update(camera, &mut { upload });
+            let figures = streamer.figures();
+            assert!(
+                figures.max_stand_in_levels <= crate::stream::STAND_IN_LEVEL_STEP,
+                "frame {frames}: a stand-in {} LODs up",
+                figures.max_stand_in_levels
+            );
+            assert!(
+                figures.triangles * 10 >= before * 9,
+                "frame {frames}: {} triangles of {before}",
+                figures.triangles
+            );
+            if streamer.settled() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            frames += 1;
+            assert!(frames < 20_000, "did not settle after the edit");
+        }
+        println!("tower: {frames} frames to settle, {before} -> {} triangles", streamer.figures().triangles);
     }
 }
