@@ -379,7 +379,9 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         "min_drawn_radius": min,
         "max_lod": layout.max_lod(),
         "seed": s.seed,
+        "terrain_version": nebula_voxel::ProceduralPlanet::TERRAIN_VERSION,
         "world": world.store().map(|store| store.path().display().to_string()),
+        "unsaved_chunks": world.unsaved_chunks(),
         "edited_voxels": world.edit_count(),
     });
     if json {
@@ -692,8 +694,19 @@ impl Windowed {
                     )
                 },
             );
+            // A save that failed (a full disk) is retried here until it
+            // goes through; the HUD says what is not saved meanwhile.
+            let unsaved = self.world.unsaved_chunks();
+            if unsaved > 0 && self.world.save().is_ok() {
+                eprintln!("nebula-demo: saved {unsaved} edited chunks that an earlier save could not write");
+            }
+            let saving = match (self.world.store(), self.world.unsaved_chunks()) {
+                (None, _) => "edits kept in memory (no --world)".to_owned(),
+                (Some(_), 0) => "every edit saved".to_owned(),
+                (Some(_), n) => format!("{n} edited chunks NOT SAVED, retrying"),
+            };
             state.hud.set_text(format!(
-                "{ms:.1} ms/frame\n{} chunks, {} triangles\n{} meshing jobs\nLOD {} to {}\naltitude {:.0} m, {:.0} m/s\n{picked}\nplaces {} (M), H hides this",
+                "{ms:.1} ms/frame\n{} chunks, {} triangles\n{} meshing jobs\nLOD {} to {}\naltitude {:.0} m, {:.0} m/s\n{picked}\nplaces {} (M), H hides this\n{saving}",
                 f.chunks,
                 f.triangles,
                 f.jobs_in_flight,

@@ -160,6 +160,37 @@ impl PlanetSettings {
     pub fn small(seed: u32) -> Self {
         Self::scaled(seed, 2_000.0, 1.5)
     }
+
+    /// Settings added since worlds were first saved with canonical
+    /// settings, each with the value that gives the planets saved before
+    /// it existed: a saved world without such a setting is that value's
+    /// planet, so adding a setting does not lock old saves out. Empty so
+    /// far; a new field goes here with the value that reproduces the
+    /// terrain without it.
+    pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] = &[];
+
+    /// The settings as canonical `(name, value)` pairs, sorted by name, for
+    /// a saved world's identity: independent of field order and of `Debug`
+    /// formatting, numbers in Rust's shortest text that reads back to the
+    /// same `f64`.
+    #[must_use]
+    pub fn canonical(&self) -> Vec<(&'static str, String)> {
+        // Destructured so that a new field cannot be forgotten here.
+        let Self { radius, voxel_size, amplitude, feature_size, mountain_size, detail_amplitude, detail_size, seed } =
+            self;
+        let mut pairs = vec![
+            ("amplitude", format!("{amplitude:?}")),
+            ("detail_amplitude", format!("{detail_amplitude:?}")),
+            ("detail_size", format!("{detail_size:?}")),
+            ("feature_size", format!("{feature_size:?}")),
+            ("mountain_size", format!("{mountain_size:?}")),
+            ("radius", format!("{radius:?}")),
+            ("seed", seed.to_string()),
+            ("voxel_size", format!("{voxel_size:?}")),
+        ];
+        pairs.sort_unstable();
+        pairs
+    }
 }
 
 /// A seeded, deterministic procedural planet (see the module docs for the
@@ -299,6 +330,13 @@ impl std::fmt::Debug for HeightCache {
 }
 
 impl ProceduralPlanet {
+    /// The version of the terrain code: the same settings give the same
+    /// voxels within a version. Bump it with any change that moves a
+    /// voxel (noise, octaves, slopes, materials), so that saved worlds are
+    /// refused instead of replayed onto other ground; a test fingerprints
+    /// the terrain to catch a forgotten bump.
+    pub const TERRAIN_VERSION: u32 = 1;
+
     /// Builds the planet.
     ///
     /// # Errors

@@ -820,3 +820,66 @@ fn a_ray_straight_up_along_an_axis_misses() {
         assert_eq!(pick(small(), origin, axis, 10_000.0).unwrap(), None, "{axis}");
     }
 }
+
+/// FNV-1a over the materials of chunks around the surface of a few
+/// columns (LOD 0 and 4, both presets, edges and corners among them).
+fn terrain_fingerprint() -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    let mut chunk = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+    for settings in [PlanetSettings::small(7), PlanetSettings::earth(11)] {
+        let planet = ProceduralPlanet::new(settings).unwrap();
+        let layout = *planet.layout();
+        for (n, face) in CubeFace::ALL.into_iter().enumerate() {
+            for lod in [0u8, 4] {
+                let per_edge = layout.chunks_per_edge(lod);
+                let (x, y) = match n % 3 {
+                    0 => (0, 0),
+                    1 => (per_edge / 2, per_edge / 3),
+                    _ => (per_edge - 1, per_edge / 5),
+                };
+                let column = ChunkColumn { face, lod, x, y };
+                for layer in planet.surface_chunk_layers(column).unwrap() {
+                    planet.fill_chunk(column.chunk(layer), &mut chunk).unwrap();
+                    for voxel in chunk.as_slice() {
+                        hash = (hash ^ u64::from(voxel.material())).wrapping_mul(0x0100_0000_01b3);
+                    }
+                }
+            }
+        }
+    }
+    hash
+}
+
+#[test]
+fn the_terrain_is_the_one_its_version_names() {
+    // Saved worlds name the terrain they were edited on by
+    // `ProceduralPlanet::TERRAIN_VERSION`. This fingerprint of the voxels
+    // changes when the terrain code does: then bump TERRAIN_VERSION (old
+    // worlds are refused, never replayed onto other ground) and record the
+    // new fingerprint here with its version.
+    const FINGERPRINTS: &[(u32, u64)] = &[(1, 0xb127_8bc9_e17b_fc98)];
+    let fingerprint = terrain_fingerprint();
+    let recorded = FINGERPRINTS.iter().find(|(version, _)| *version == ProceduralPlanet::TERRAIN_VERSION);
+    assert_eq!(
+        recorded.map(|(_, f)| *f),
+        Some(fingerprint),
+        "the terrain changed ({fingerprint:#x}): bump ProceduralPlanet::TERRAIN_VERSION and record it"
+    );
+    // Versions that were released stay distinct.
+    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 != w[1].1));
+}
+
+#[test]
+fn canonical_settings_name_every_field_once_sorted() {
+    let settings = PlanetSettings::earth(11);
+    let pairs = settings.canonical();
+    assert!(pairs.windows(2).all(|w| w[0].0 < w[1].0), "{pairs:?}");
+    assert_eq!(pairs.len(), 8);
+    // Values read back to the same settings, and a change shows.
+    let radius: f64 = pairs.iter().find(|(n, _)| *n == "radius").unwrap().1.parse().unwrap();
+    assert_eq!(radius, settings.radius);
+    let other = PlanetSettings { seed: 12, ..settings.clone() };
+    assert_ne!(other.canonical(), pairs);
+    let nudged = PlanetSettings { amplitude: settings.amplitude.next_up(), ..settings };
+    assert_ne!(nudged.canonical(), pairs);
+}

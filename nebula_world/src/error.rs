@@ -31,8 +31,26 @@ pub enum WorldError {
         /// The version this build reads and writes.
         supported: u8,
     },
-    /// The world belongs to a planet with other settings (its edits would
-    /// land on different terrain). It was not modified.
+    /// The world was saved on another version of the terrain code: the
+    /// same settings give other ground now, so its edits would land in the
+    /// wrong places. It was not modified.
+    #[error(
+        "{path} was saved with terrain version {stored} of {generator}, this build has {this_build}: \
+         its edits would land on other ground"
+    )]
+    TerrainVersion {
+        /// The world file.
+        path: PathBuf,
+        /// The terrain generator.
+        generator: String,
+        /// The terrain version the world was saved with.
+        stored: u32,
+        /// This build's terrain version.
+        this_build: u32,
+    },
+    /// The world belongs to a planet with other settings or another
+    /// generator (its edits would land on different terrain). It was not
+    /// modified.
     #[error("{path} holds edits of another planet: saved for {stored}, opened with {given}")]
     OtherPlanet {
         /// The world file.

@@ -68,7 +68,7 @@ use nebula_voxel::{
 };
 
 pub use error::WorldError;
-pub use store::{FORMAT_VERSION, WorldStore};
+pub use store::{FORMAT_VERSION, Terrain, WorldStore};
 
 /// One change to the planet's LOD-0 voxels. `Voxel::AIR` digs, a material
 /// places.
@@ -133,25 +133,26 @@ impl World<ProceduralPlanet> {
     /// # Errors
     /// The planet's settings errors, and [`WorldStore::open`]'s.
     pub fn open(settings: PlanetSettings, path: Option<&Path>) -> Result<Self, WorldError> {
-        let identity = format!("{settings:?}");
-        Self::with_source(ProceduralPlanet::new(settings)?, &identity, path)
+        let terrain = Terrain::of_planet(&settings);
+        Self::with_source(ProceduralPlanet::new(settings)?, &terrain, path)
     }
 }
 
 impl<S: VoxelSource + Clone> World<S> {
-    /// Any voxel source with the edits saved at `path`; `planet` names the
-    /// source's terrain (it must change whenever the terrain would), so a
-    /// file is never replayed onto another planet.
+    /// Any voxel source with the edits saved at `path`; `terrain` names the
+    /// source's generator, code version and settings (the version must
+    /// change whenever the same settings would give other voxels), so a
+    /// file is never replayed onto other ground.
     ///
     /// # Errors
     /// [`WorldStore::open`]'s, and [`WorldError::Corrupted`] for a saved
     /// voxel that is not on this planet.
-    pub fn with_source(base: S, planet: &str, path: Option<&Path>) -> Result<Self, WorldError> {
+    pub fn with_source(base: S, terrain: &Terrain, path: Option<&Path>) -> Result<Self, WorldError> {
         let mut source = EditedSource::new(base);
         let store = match path {
             None => None,
             Some(path) => {
-                let (store, edits) = WorldStore::open(path, planet)?;
+                let (store, edits) = WorldStore::open(path, terrain)?;
                 for (at, voxel) in edits {
                     source.set_voxel(at, voxel).map_err(|e| WorldError::Corrupted {
                         path: path.into(),
@@ -180,6 +181,14 @@ impl<S: VoxelSource + Clone> World<S> {
     /// The world file, if any.
     pub fn store(&self) -> Option<&WorldStore> {
         self.store.as_ref()
+    }
+
+    /// LOD-0 chunks whose edits are not saved yet: 0 after every save that
+    /// went through; more after a failed one (a full disk), until a later
+    /// [`World::apply`] or [`World::save`] writes them. A game shows it
+    /// and calls [`World::save`] now and then while it is not 0.
+    pub fn unsaved_chunks(&self) -> usize {
+        self.unsaved.len()
     }
 
     /// How many LOD-0 voxels differ from the generated planet.
@@ -243,12 +252,15 @@ impl<S: VoxelSource + Clone> World<S> {
     }
 
     /// Saves every edited chunk not saved yet. Returns how many chunks
-    /// were written (0 without a file).
+    /// were written (0 without a file). After a failed save the file is
+    /// opened again on a new handle and the save retried
+    /// ([`WorldStore::save_chunks`]).
     ///
     /// # Errors
-    /// [`WorldError::Storage`]; the chunks stay pending.
+    /// [`WorldError::Storage`]; the chunks stay pending
+    /// ([`World::unsaved_chunks`]).
     pub fn save(&mut self) -> Result<usize, WorldError> {
-        let Some(store) = &self.store else {
+        let Some(store) = &mut self.store else {
             self.unsaved.clear();
             return Ok(0);
         };

@@ -1,10 +1,12 @@
 //! Saved worlds: per-chunk edit diffs in a redb database.
 //!
 //! ```text
-//!   table "meta"         "format" → [FORMAT_VERSION]
-//!                        "planet" → the planet's identity (its settings)
+//!   table "meta"         "format"          → [FORMAT_VERSION]
+//!                        "generator"       → the terrain generator's name (UTF-8)
+//!                        "terrain_version" → its code version, u32 LE
+//!                        "settings"        → its canonical settings, "name=value\n" sorted by name
 //!   table "chunk_edits"  (face, x, y, layer) of a LOD-0 chunk
-//!                        → [version u8][count u32 LE][count × (local u16 LE, material u8)]
+//!                        → [VALUE_FORMAT u8][count u32 LE][count × (local u16 LE, material u8)]
 //! ```
 //!
 //! `local` is `i + 32·(j + 32·h)` inside the chunk. A value holds every
@@ -14,15 +16,31 @@
 //! not at all, so a process killed mid-save loses at most the batch it was
 //! writing and the file still opens.
 //!
+//! **What the edits lie on** ([`Terrain`]): the generator, the version of
+//! its code and its settings are stored apart, so a world is refused with
+//! the reason: another terrain version ("saved with terrain version N,
+//! this build has M"), or other settings (naming them). A setting added
+//! after a world was saved is matched by the value that gives the planets
+//! saved before it ([`Terrain::added_settings`]), so old saves still open.
+//! Format 1 (before versioned terrain) kept the settings' `Debug` text; such
+//! a file opens when that text is this planet's ([`Terrain::legacy`]) and is
+//! then rewritten as format 2.
+//!
 //! Opening checks the file read-only first (redb's integrity check, the
-//! format version, the planet, every value's encoding) and refuses a
+//! format version, the terrain, every value's encoding) and refuses a
 //! corrupted, foreign or wrong-version file before anything could write to
 //! it. Only a file left by a killed writer is opened for writing straight
 //! away: redb must roll it back to its last commit first.
+//!
+//! **A failed save is retried on a new handle.** After one I/O error (a
+//! full disk, a pulled drive) redb refuses every later transaction of that
+//! handle; [`WorldStore::save_chunks`] then closes it, opens the file again
+//! (redb rolls back to the last commit) and retries once, and every later
+//! save does the same until the disk takes the data again.
 
 use std::path::{Path, PathBuf};
 
-use nebula_voxel::{CHUNK_SIZE, ChunkKey, CubeFace, Voxel, VoxelCoord};
+use nebula_voxel::{CHUNK_SIZE, ChunkKey, CubeFace, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord};
 use redb::{
     Builder, Database, DatabaseError, ReadableDatabase, ReadableTable, ReadableTableMetadata, StorageError,
     TableDefinition,
@@ -30,17 +48,101 @@ use redb::{
 
 use crate::WorldError;
 
-/// The format this build reads and writes, stored in the meta table and in
-/// every chunk value.
-pub const FORMAT_VERSION: u8 = 1;
+/// The file format this build reads and writes, stored in the meta table
+/// (it reads format 1 too, and rewrites it as this one).
+pub const FORMAT_VERSION: u8 = 2;
+
+/// The encoding of a chunk's value, its first byte.
+const VALUE_FORMAT: u8 = 1;
 
 pub(crate) const META: TableDefinition<&str, &[u8]> = TableDefinition::new("meta");
 const CHUNK_EDITS: TableDefinition<(u8, u32, u32, i32), &[u8]> = TableDefinition::new("chunk_edits");
 
+/// The terrain a world's edits were made on: they are replayed only onto
+/// the same terrain.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Terrain {
+    /// The generator's name (for the procedural planet,
+    /// `"nebula_voxel::ProceduralPlanet"`).
+    pub generator: String,
+    /// The version of the generator's code: within a version, the same
+    /// settings give the same voxels.
+    pub version: u32,
+    /// The settings, canonical: `(name, value)` pairs sorted by name.
+    pub settings: Vec<(String, String)>,
+    /// Settings newer than some saved worlds, with the value that gives
+    /// the terrain those worlds were saved on (a world that lacks the
+    /// setting matches when this build has that value).
+    pub added_settings: Vec<(String, String)>,
+    /// The identity text format-1 worlds stored for this terrain (before
+    /// versioned terrain), if any: such a world opens when it matches.
+    pub legacy: Option<String>,
+}
+
+impl Terrain {
+    /// The terrain of [`ProceduralPlanet`] with `settings`.
+    #[must_use]
+    pub fn of_planet(settings: &PlanetSettings) -> Self {
+        let owned = |pairs: Vec<(&str, String)>| pairs.into_iter().map(|(n, v)| (n.to_owned(), v)).collect();
+        Self {
+            generator: "nebula_voxel::ProceduralPlanet".into(),
+            version: ProceduralPlanet::TERRAIN_VERSION,
+            settings: owned(settings.canonical()),
+            added_settings: owned(PlanetSettings::ADDED_SETTINGS.iter().map(|&(n, v)| (n, v.to_owned())).collect()),
+            // Format 1 keyed worlds by the settings' Debug text; the terrain
+            // code did not change between the last format-1 build and
+            // terrain version 1.
+            legacy: (ProceduralPlanet::TERRAIN_VERSION == 1).then(|| format!("{settings:?}")),
+        }
+    }
+
+    /// The settings as stored: `name=value` lines, sorted by name.
+    fn settings_bytes(&self) -> Vec<u8> {
+        let mut settings = self.settings.clone();
+        settings.sort();
+        settings.iter().map(|(name, value)| format!("{name}={value}\n")).collect::<String>().into_bytes()
+    }
+
+    /// Whether stored settings are this terrain's: the same values, a
+    /// setting missing from the store only where this build has the value
+    /// that gives the older planets. Returns the differences otherwise, as
+    /// (stored, this build) texts.
+    fn compare_settings(&self, stored: &[(String, String)]) -> Result<(), (String, String)> {
+        let mut differ: (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+        for (name, value) in &self.settings {
+            let theirs =
+                stored.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).or_else(|| {
+                    self.added_settings.iter().find(|(n, _)| n == name).map(|(_, implied)| implied.clone())
+                });
+            if theirs.as_ref() != Some(value) {
+                differ.0.push(format!("{name}={}", theirs.as_deref().unwrap_or("(none)")));
+                differ.1.push(format!("{name}={value}"));
+            }
+        }
+        for (name, value) in stored.iter().filter(|(n, _)| !self.settings.iter().any(|(m, _)| m == n)) {
+            differ.0.push(format!("{name}={value}"));
+            differ.1.push(format!("{name}=(unknown to this build)"));
+        }
+        if differ.0.is_empty() { Ok(()) } else { Err((differ.0.join(", "), differ.1.join(", "))) }
+    }
+}
+
+/// Parses stored `name=value` lines.
+fn parse_settings(bytes: &[u8]) -> Option<Vec<(String, String)>> {
+    let text = std::str::from_utf8(bytes).ok()?;
+    text.lines().map(|line| line.split_once('=').map(|(n, v)| (n.to_owned(), v.to_owned()))).collect()
+}
+
 /// An open world file.
 pub struct WorldStore {
-    db: Database,
+    /// `None` after a failed reopen: the next save opens the file first.
+    db: Option<Database>,
     path: PathBuf,
+    /// Saves that failed since the last one that went through.
+    failures: u32,
+    /// Test hook: writes fail while set (a full disk).
+    #[cfg(test)]
+    pub(crate) disk_full: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl std::fmt::Debug for WorldStore {
@@ -50,21 +152,20 @@ impl std::fmt::Debug for WorldStore {
 }
 
 impl WorldStore {
-    /// Opens the world at `path` for the planet named `planet` (any string
-    /// that changes when the terrain would: `format!("{settings:?}")` for a
-    /// procedural planet), or creates it. Returns the store and every saved
-    /// edit.
+    /// Opens the world at `path` for `terrain`, or creates it. Returns the
+    /// store and every saved edit.
     ///
     /// # Errors
-    /// [`WorldError::Corrupted`], [`WorldError::WrongVersion`] and
-    /// [`WorldError::OtherPlanet`] (the file is left as it was),
-    /// [`WorldError::InUse`], [`WorldError::Storage`].
-    pub fn open(path: &Path, planet: &str) -> Result<(Self, Vec<(VoxelCoord, Voxel)>), WorldError> {
+    /// [`WorldError::Corrupted`], [`WorldError::WrongVersion`],
+    /// [`WorldError::TerrainVersion`] and [`WorldError::OtherPlanet`] (the
+    /// file is left as it was), [`WorldError::InUse`],
+    /// [`WorldError::Storage`].
+    pub fn open(path: &Path, terrain: &Terrain) -> Result<(Self, Vec<(VoxelCoord, Voxel)>), WorldError> {
         // redb documents that opening a file damaged outside redb may panic
         // (we measured "Malformed allocator state" on flipped bytes, with
         // the integrity check on): such a file is refused like any other
         // corrupted one.
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Self::open_checked(path, planet))).unwrap_or_else(
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Self::open_checked(path, terrain))).unwrap_or_else(
             |panic| {
                 let reason = panic
                     .downcast_ref::<&str>()
@@ -76,37 +177,65 @@ impl WorldStore {
         )
     }
 
-    fn open_checked(path: &Path, planet: &str) -> Result<(Self, Vec<(VoxelCoord, Voxel)>), WorldError> {
-        let storage = |e: &dyn std::fmt::Display| WorldError::Storage { path: path.into(), message: e.to_string() };
+    fn open_checked(path: &Path, terrain: &Terrain) -> Result<(Self, Vec<(VoxelCoord, Voxel)>), WorldError> {
         let exists = std::fs::metadata(path).map(|m| m.len() > 0).unwrap_or(false);
         if !exists {
             let db = Database::create(path).map_err(|e| classify(path, e))?;
-            let store = Self { db, path: path.into() };
-            let txn = store.db.begin_write().map_err(|e| storage(&e))?;
-            {
-                let mut meta = txn.open_table(META).map_err(|e| storage(&e))?;
-                meta.insert("format", [FORMAT_VERSION].as_slice()).map_err(|e| storage(&e))?;
-                meta.insert("planet", planet.as_bytes()).map_err(|e| storage(&e))?;
-                txn.open_table(CHUNK_EDITS).map_err(|e| storage(&e))?;
-            }
-            txn.commit().map_err(|e| storage(&e))?;
+            let store = Self::with_db(db, path);
+            store.write_identity(terrain)?;
             return Ok((store, Vec::new()));
         }
         let checked = Builder::new().set_check_integrity_on_open(true).open_read_only(path);
-        let edits = match checked {
-            Ok(read_only) => {
-                let edits = read_all(&read_only, path, planet)?;
-                drop(read_only);
-                edits
-            }
+        let read = match checked {
+            Ok(read_only) => Some(read_all(&read_only, path, terrain)?),
             // Left by a killed writer: redb rolls it back to its last commit
             // when opened for writing; the checks below run on the result.
-            Err(DatabaseError::RepairAborted) => Vec::new(),
+            Err(DatabaseError::RepairAborted) => None,
             Err(e) => return Err(classify(path, e)),
         };
         let db = Builder::new().set_check_integrity_on_open(true).open(path).map_err(|e| classify(path, e))?;
-        let edits = if edits.is_empty() { read_all(&db, path, planet)? } else { edits };
-        Ok((Self { db, path: path.into() }, edits))
+        let store = Self::with_db(db, path);
+        // Read again on the handle we keep: a writer that committed between
+        // the check and this open is not missed.
+        let (format, edits) = match (read, store.db.as_ref()) {
+            (_, Some(db)) => read_all(db, path, terrain)?,
+            (Some(read), None) => read,
+            (None, None) => unreachable!("with_db keeps the handle"),
+        };
+        if format != FORMAT_VERSION {
+            store.write_identity(terrain)?;
+        }
+        Ok((store, edits))
+    }
+
+    fn with_db(db: Database, path: &Path) -> Self {
+        Self {
+            db: Some(db),
+            path: path.into(),
+            failures: 0,
+            #[cfg(test)]
+            disk_full: None,
+        }
+    }
+
+    fn storage(&self, error: &dyn std::fmt::Display) -> WorldError {
+        WorldError::Storage { path: self.path.clone(), message: error.to_string() }
+    }
+
+    /// Writes the format and the terrain (a new file, or one of format 1).
+    fn write_identity(&self, terrain: &Terrain) -> Result<(), WorldError> {
+        let db = self.db.as_ref().ok_or_else(|| self.storage(&"the world file is not open"))?;
+        let txn = db.begin_write().map_err(|e| self.storage(&e))?;
+        {
+            let mut meta = txn.open_table(META).map_err(|e| self.storage(&e))?;
+            meta.insert("format", [FORMAT_VERSION].as_slice()).map_err(|e| self.storage(&e))?;
+            meta.insert("generator", terrain.generator.as_bytes()).map_err(|e| self.storage(&e))?;
+            meta.insert("terrain_version", terrain.version.to_le_bytes().as_slice()).map_err(|e| self.storage(&e))?;
+            meta.insert("settings", terrain.settings_bytes().as_slice()).map_err(|e| self.storage(&e))?;
+            meta.remove("planet").map_err(|e| self.storage(&e))?;
+            txn.open_table(CHUNK_EDITS).map_err(|e| self.storage(&e))?;
+        }
+        txn.commit().map_err(|e| self.storage(&e))
     }
 
     /// The world file.
@@ -115,27 +244,67 @@ impl WorldStore {
         &self.path
     }
 
+    /// Saves that failed since the last one that went through (0 when the
+    /// last save was written).
+    #[must_use]
+    pub fn failures(&self) -> u32 {
+        self.failures
+    }
+
     /// Replaces the saved edits of each LOD-0 chunk given (an empty list
-    /// deletes the chunk's entry), all in one durable transaction.
+    /// deletes the chunk's entry), all in one durable transaction. After a
+    /// failure (or when the last save failed) the file is opened again on a
+    /// new handle and the save retried once: a disk that was full takes
+    /// the data as soon as there is room again.
     ///
     /// # Errors
     /// [`WorldError::Storage`]; nothing of the batch is saved then.
-    pub fn save_chunks(&self, chunks: &[(ChunkKey, Vec<(VoxelCoord, Voxel)>)]) -> Result<(), WorldError> {
-        let storage =
-            |e: &dyn std::fmt::Display| WorldError::Storage { path: self.path.clone(), message: e.to_string() };
-        let txn = self.db.begin_write().map_err(|e| storage(&e))?;
+    pub fn save_chunks(&mut self, chunks: &[(ChunkKey, Vec<(VoxelCoord, Voxel)>)]) -> Result<(), WorldError> {
+        let first = if self.failures > 0 { Err(self.storage(&"the last save failed")) } else { self.commit(chunks) };
+        let result = first.or_else(|_| {
+            self.reopen()?;
+            self.commit(chunks)
+        });
+        match &result {
+            Ok(()) => self.failures = 0,
+            Err(_) => self.failures = self.failures.saturating_add(1),
+        }
+        result
+    }
+
+    /// Closes the handle and opens the file again: redb refuses every
+    /// transaction of a handle that saw an I/O error.
+    pub(crate) fn reopen(&mut self) -> Result<(), WorldError> {
+        // The file lock is the handle's: the old one must go first.
+        self.db = None;
+        let builder = Builder::new();
+        #[cfg(test)]
+        if let Some(full) = &self.disk_full {
+            let file =
+                std::fs::OpenOptions::new().read(true).write(true).open(&self.path).map_err(|e| self.storage(&e))?;
+            let disk = tests_support::FullDisk::new(file, full.clone()).map_err(|e| self.storage(&e))?;
+            self.db = Some(builder.create_with_backend(disk).map_err(|e| classify(&self.path, e))?);
+            return Ok(());
+        }
+        self.db = Some(builder.open(&self.path).map_err(|e| classify(&self.path, e))?);
+        Ok(())
+    }
+
+    fn commit(&self, chunks: &[(ChunkKey, Vec<(VoxelCoord, Voxel)>)]) -> Result<(), WorldError> {
+        let db = self.db.as_ref().ok_or_else(|| self.storage(&"the world file is not open"))?;
+        let txn = db.begin_write().map_err(|e| self.storage(&e))?;
         {
-            let mut table = txn.open_table(CHUNK_EDITS).map_err(|e| storage(&e))?;
+            let mut table = txn.open_table(CHUNK_EDITS).map_err(|e| self.storage(&e))?;
             for (key, edits) in chunks {
                 let db_key = (key.face as u8, key.x, key.y, key.layer);
                 if edits.is_empty() {
-                    table.remove(db_key).map_err(|e| storage(&e))?;
+                    table.remove(db_key).map_err(|e| self.storage(&e))?;
                 } else {
-                    table.insert(db_key, encode(*key, edits).as_slice()).map_err(|e| storage(&e))?;
+                    table.insert(db_key, encode(*key, edits).as_slice()).map_err(|e| self.storage(&e))?;
                 }
             }
         }
-        txn.commit().map_err(|e| storage(&e))
+        txn.commit().map_err(|e| self.storage(&e))
     }
 
     /// How many chunks hold saved edits.
@@ -143,10 +312,9 @@ impl WorldStore {
     /// # Errors
     /// [`WorldError::Storage`].
     pub fn saved_chunks(&self) -> Result<u64, WorldError> {
-        let storage =
-            |e: &dyn std::fmt::Display| WorldError::Storage { path: self.path.clone(), message: e.to_string() };
-        let txn = self.db.begin_read().map_err(|e| storage(&e))?;
-        txn.open_table(CHUNK_EDITS).map_err(|e| storage(&e))?.len().map_err(|e| storage(&e))
+        let db = self.db.as_ref().ok_or_else(|| self.storage(&"the world file is not open"))?;
+        let txn = db.begin_read().map_err(|e| self.storage(&e))?;
+        txn.open_table(CHUNK_EDITS).map_err(|e| self.storage(&e))?.len().map_err(|e| self.storage(&e))
     }
 }
 
@@ -168,23 +336,63 @@ fn classify(path: &Path, error: DatabaseError) -> WorldError {
     }
 }
 
-/// Every saved edit, after checking the format, the planet and each value.
-fn read_all(db: &impl ReadableDatabase, path: &Path, planet: &str) -> Result<Vec<(VoxelCoord, Voxel)>, WorldError> {
+/// The file's format and every saved edit, after checking the format, the
+/// terrain and each value.
+fn read_all(
+    db: &impl ReadableDatabase,
+    path: &Path,
+    terrain: &Terrain,
+) -> Result<(u8, Vec<(VoxelCoord, Voxel)>), WorldError> {
     let corrupted = |reason: String| WorldError::Corrupted { path: path.into(), reason };
     let txn = db.begin_read().map_err(|e| corrupted(e.to_string()))?;
     let meta = txn.open_table(META).map_err(|e| corrupted(format!("no meta table ({e})")))?;
-    let format = meta.get("format").map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec());
-    match format.as_deref() {
-        Some([FORMAT_VERSION]) => {}
-        Some([found]) => {
-            return Err(WorldError::WrongVersion { path: path.into(), found: *found, supported: FORMAT_VERSION });
-        }
+    let get = |name: &str| -> Result<Option<Vec<u8>>, WorldError> {
+        Ok(meta.get(name).map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec()))
+    };
+    let format = match get("format")?.as_deref() {
+        Some(&[found]) if found == FORMAT_VERSION || found == 1 => found,
+        Some(&[found]) => return Err(WorldError::WrongVersion { path: path.into(), found, supported: FORMAT_VERSION }),
         _ => return Err(corrupted("no format version".into())),
-    }
-    let stored = meta.get("planet").map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec());
-    let stored = String::from_utf8_lossy(&stored.ok_or_else(|| corrupted("no planet".into()))?).into_owned();
-    if stored != planet {
-        return Err(WorldError::OtherPlanet { path: path.into(), stored, given: planet.into() });
+    };
+    if format == 1 {
+        let stored = get("planet")?.ok_or_else(|| corrupted("no planet".into()))?;
+        let stored = String::from_utf8_lossy(&stored).into_owned();
+        if terrain.legacy.as_deref() != Some(stored.as_str()) {
+            let given =
+                terrain.legacy.clone().unwrap_or_else(|| format!("{} version {}", terrain.generator, terrain.version));
+            return Err(WorldError::OtherPlanet { path: path.into(), stored, given });
+        }
+    } else {
+        let generator = get("generator")?.ok_or_else(|| corrupted("no terrain generator".into()))?;
+        let generator = String::from_utf8_lossy(&generator).into_owned();
+        let version = get("terrain_version")?
+            .and_then(|v| <[u8; 4]>::try_from(v.as_slice()).ok())
+            .map(u32::from_le_bytes)
+            .ok_or_else(|| corrupted("no terrain version".into()))?;
+        let settings = get("settings")?
+            .as_deref()
+            .and_then(parse_settings)
+            .ok_or_else(|| corrupted("no readable terrain settings".into()))?;
+        if generator != terrain.generator {
+            return Err(WorldError::OtherPlanet {
+                path: path.into(),
+                stored: generator,
+                given: terrain.generator.clone(),
+            });
+        }
+        if version != terrain.version {
+            return Err(WorldError::TerrainVersion {
+                path: path.into(),
+                generator,
+                stored: version,
+                this_build: terrain.version,
+            });
+        }
+        terrain.compare_settings(&settings).map_err(|(stored, given)| WorldError::OtherPlanet {
+            path: path.into(),
+            stored,
+            given,
+        })?;
     }
     let table = txn.open_table(CHUNK_EDITS).map_err(|e| corrupted(format!("no chunk table ({e})")))?;
     let mut edits = Vec::new();
@@ -195,12 +403,12 @@ fn read_all(db: &impl ReadableDatabase, path: &Path, planet: &str) -> Result<Vec
         let key = ChunkKey { face, lod: 0, x, y, layer };
         decode(key, value.value(), &mut edits).map_err(|reason| corrupted(format!("chunk {key:?}: {reason}")))?;
     }
-    Ok(edits)
+    Ok((format, edits))
 }
 
 pub(crate) fn encode(key: ChunkKey, edits: &[(VoxelCoord, Voxel)]) -> Vec<u8> {
     let mut bytes = Vec::with_capacity(5 + 3 * edits.len());
-    bytes.push(FORMAT_VERSION);
+    bytes.push(VALUE_FORMAT);
     bytes.extend_from_slice(&(edits.len() as u32).to_le_bytes());
     let size = CHUNK_SIZE as i64;
     for (at, voxel) in edits {
@@ -216,8 +424,8 @@ pub(crate) fn encode(key: ChunkKey, edits: &[(VoxelCoord, Voxel)]) -> Vec<u8> {
 
 pub(crate) fn decode(key: ChunkKey, bytes: &[u8], out: &mut Vec<(VoxelCoord, Voxel)>) -> Result<(), String> {
     let (&version, rest) = bytes.split_first().ok_or("empty value")?;
-    if version != FORMAT_VERSION {
-        return Err(format!("value format {version}, expected {FORMAT_VERSION}"));
+    if version != VALUE_FORMAT {
+        return Err(format!("value format {version}, expected {VALUE_FORMAT}"));
     }
     let count = rest.get(..4).ok_or("truncated count")?;
     let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]) as usize;
@@ -241,4 +449,82 @@ pub(crate) fn decode(key: ChunkKey, bytes: &[u8], out: &mut Vec<(VoxelCoord, Vox
         out.push((at, Voxel::from_material(entry[2])));
     }
     Ok(())
+}
+
+/// A disk that fills up on demand, for the tests of failed saves.
+#[cfg(test)]
+pub(crate) mod tests_support {
+    use std::ops::Bound;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    use redb::backends::FileBackend;
+    use redb::{BackendError, DatabaseError, StorageBackend};
+
+    /// What redb's I/O methods return (without its `experimental-api-5`).
+    type BackendIoError = std::io::Error;
+
+    /// The world file, whose writes, syncs and growth fail with "no space
+    /// left on device" while `full` is set.
+    #[derive(Debug)]
+    pub(crate) struct FullDisk {
+        file: FileBackend,
+        full: Arc<AtomicBool>,
+    }
+
+    impl FullDisk {
+        pub(crate) fn new(file: std::fs::File, full: Arc<AtomicBool>) -> Result<Self, DatabaseError> {
+            Ok(Self { file: FileBackend::new(file)?, full })
+        }
+
+        fn check(&self) -> Result<(), BackendIoError> {
+            if self.full.load(Ordering::SeqCst) {
+                Err(std::io::Error::from(std::io::ErrorKind::StorageFull))
+            } else {
+                Ok(())
+            }
+        }
+    }
+
+    impl StorageBackend for FullDisk {
+        fn len(&self) -> Result<u64, BackendIoError> {
+            self.file.len()
+        }
+        fn read(&self, offset: u64, out: &mut [u8]) -> Result<(), BackendIoError> {
+            self.file.read(offset, out)
+        }
+        fn set_len(&self, len: u64) -> Result<(), BackendIoError> {
+            self.check()?;
+            self.file.set_len(len)
+        }
+        fn sync_data(&self) -> Result<(), BackendIoError> {
+            self.check()?;
+            self.file.sync_data()
+        }
+        fn write(&self, offset: u64, data: &[u8]) -> Result<(), BackendIoError> {
+            self.check()?;
+            self.file.write(offset, data)
+        }
+        fn close(&self) -> Result<(), BackendIoError> {
+            self.file.close()
+        }
+        fn try_lock_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<bool, BackendError> {
+            self.file.try_lock_range(start, end)
+        }
+        fn try_lock_shared_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<bool, BackendError> {
+            self.file.try_lock_shared_range(start, end)
+        }
+        fn lock_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<(), BackendError> {
+            self.file.lock_range(start, end)
+        }
+        fn lock_shared_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<(), BackendError> {
+            self.file.lock_shared_range(start, end)
+        }
+        fn unlock_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<(), BackendError> {
+            self.file.unlock_range(start, end)
+        }
+        fn query_lock_range(&self, start: Bound<u64>, end: Bound<u64>) -> Result<bool, BackendError> {
+            self.file.query_lock_range(start, end)
+        }
+    }
 }

@@ -139,8 +139,224 @@ fn damaged_foreign_and_wrong_version_files_are_refused_untouched() {
     }
     let future = std::fs::read(&damaged).unwrap();
     let refused = open_outcome(&settings, &damaged);
-    assert!(matches!(refused, Err(WorldError::WrongVersion { found: 2, supported: 1, .. })), "{refused:?}");
+    assert!(
+        matches!(refused, Err(WorldError::WrongVersion { found, supported: FORMAT_VERSION, .. }) if found == FORMAT_VERSION + 1),
+        "{refused:?}"
+    );
     assert!(std::fs::read(&damaged).unwrap() == future, "a wrong-version file was modified");
+}
+
+#[test]
+fn a_full_disk_fails_saves_and_a_later_save_writes_everything() {
+    // The world's file on a disk that fills up on demand (writes, syncs
+    // and growth fail with "no space left"): after the first failure redb
+    // refuses every transaction of that handle, so recovery needs a new
+    // one. Edits made while the disk is full stay applied and counted as
+    // unsaved; once there is room the next save writes them all, and the
+    // file reopens with every edit.
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let settings = PlanetSettings::small(9);
+    let path = scratch("full-disk");
+    let mut world = World::open(settings.clone(), Some(&path)).unwrap();
+    let full = Arc::new(AtomicBool::new(false));
+    {
+        let store = world.store.as_mut().unwrap();
+        store.disk_full = Some(full.clone());
+        store.reopen().unwrap();
+    }
+    let size = world.source().base().voxel_size();
+    let mut state = 0xf011_u64;
+    let mut dig = |world: &mut World| {
+        let direction = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5).normalize();
+        let ground = world.source().base().surface_point(direction);
+        world.apply(&[Edit::Sphere { center: ground, radius: 2.5 * size, voxel: Voxel::AIR }])
+    };
+    dig(&mut world).unwrap();
+    assert_eq!(world.unsaved_chunks(), 0);
+    full.store(true, Ordering::SeqCst);
+    for attempt in 0..3 {
+        let failed = dig(&mut world);
+        assert!(matches!(failed, Err(WorldError::Storage { .. })), "attempt {attempt}: {failed:?}");
+        assert!(world.unsaved_chunks() > 0);
+        assert!(world.store().unwrap().failures() > 0);
+    }
+    let pending = world.unsaved_chunks();
+    assert!(matches!(world.save(), Err(WorldError::Storage { .. })), "the disk is still full");
+    full.store(false, Ordering::SeqCst);
+    assert_eq!(world.save().unwrap(), pending, "the save after the disk has room writes every pending chunk");
+    assert_eq!(world.unsaved_chunks(), 0);
+    assert_eq!(world.store().unwrap().failures(), 0);
+    dig(&mut world).unwrap();
+    let want = edited_voxels(&world);
+    drop(world);
+    let reopened = World::open(settings, Some(&path)).unwrap();
+    assert_eq!(edited_voxels(&reopened), want, "edits made while the disk was full were lost");
+    println!("full disk: 3 edits refused, {pending} chunks pending, all saved once the disk had room");
+
+    // The control: the same first failure without reopening stays failed
+    // (redb's "previous I/O error"), which is what main did for the rest
+    // of the session.
+    let path = scratch("full-disk-control");
+    let store_dir = World::open(PlanetSettings::small(9), Some(&path)).unwrap();
+    drop(store_dir);
+    let file = std::fs::OpenOptions::new().read(true).write(true).open(&path).unwrap();
+    let full = Arc::new(AtomicBool::new(false));
+    let db = redb::Builder::new()
+        .create_with_backend(store::tests_support::FullDisk::new(file, full.clone()).unwrap())
+        .unwrap();
+    let write = |db: &redb::Database| -> Result<(), String> {
+        let txn = db.begin_write().map_err(|e| e.to_string())?;
+        txn.open_table(store::META)
+            .map_err(|e| e.to_string())?
+            .insert("probe", [1u8].as_slice())
+            .map_err(|e| e.to_string())?;
+        txn.commit().map_err(|e| e.to_string())
+    };
+    full.store(true, Ordering::SeqCst);
+    assert!(write(&db).is_err());
+    full.store(false, Ordering::SeqCst);
+    let again = write(&db);
+    assert!(again.is_err(), "redb took a write on a handle that saw an I/O error: the reopen would not be needed");
+    println!("control, same handle after the disk has room: {}", again.unwrap_err());
+}
+
+#[test]
+fn a_world_open_in_another_process_is_in_use() {
+    // This test runs itself as the other process: with the variable set,
+    // it holds the world open until its input closes.
+    const HOLD: &str = "NEBULA_TEST_HOLD_WORLD";
+    if let Ok(path) = std::env::var(HOLD) {
+        let world = World::open(PlanetSettings::small(2), Some(Path::new(&path))).unwrap();
+        println!("HOLDING");
+        std::io::Write::flush(&mut std::io::stdout()).unwrap();
+        let _ = std::io::Read::read_to_end(&mut std::io::stdin(), &mut Vec::new());
+        drop(world);
+        return;
+    }
+    use std::io::BufRead;
+    let path = scratch("in-use");
+    drop(World::open(PlanetSettings::small(2), Some(&path)).unwrap());
+    let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "tests::a_world_open_in_another_process_is_in_use", "--nocapture", "--test-threads=1"])
+        .env(HOLD, &path)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut lines = stdout.lines();
+    assert!(lines.any(|line| line.is_ok_and(|l| l.contains("HOLDING"))), "the other process never opened the world");
+    let before = std::fs::read(&path).unwrap();
+    let refused = World::open(PlanetSettings::small(2), Some(&path));
+    assert!(matches!(refused, Err(WorldError::InUse { .. })), "{refused:?}");
+    assert!(std::fs::read(&path).unwrap() == before, "the file was written while another process had it");
+    drop(child.stdin.take());
+    assert!(child.wait().unwrap().success());
+    World::open(PlanetSettings::small(2), Some(&path)).expect("opens once the other process has closed it");
+}
+
+#[test]
+fn a_world_knows_its_terrain() {
+    let settings = PlanetSettings::small(3);
+    let this = Terrain::of_planet(&settings);
+    let planet = || ProceduralPlanet::new(settings.clone()).unwrap();
+    let edit = |world: &mut World| {
+        let ground = world.source().base().surface_point(DVec3::Y);
+        world.apply(&[Edit::Sphere { center: ground, radius: 3.0, voxel: Voxel::AIR }]).unwrap();
+        edited_voxels(world)
+    };
+
+    // Saved by a build whose terrain code is another version: refused as
+    // such, untouched.
+    let path = scratch("terrain-version");
+    let newer = Terrain { version: this.version + 1, ..this.clone() };
+    edit(&mut World::with_source(planet(), &newer, Some(&path)).unwrap());
+    let bytes = std::fs::read(&path).unwrap();
+    let refused = World::open(settings.clone(), Some(&path)).unwrap_err();
+    assert!(
+        matches!(refused, WorldError::TerrainVersion { stored, this_build, .. } if stored == this.version + 1 && this_build == this.version),
+        "{refused:?}"
+    );
+    let message = refused.to_string();
+    assert!(
+        message.contains(&format!("terrain version {}", this.version + 1))
+            && message.contains(&format!("this build has {}", this.version)),
+        "{message}"
+    );
+    assert!(std::fs::read(&path).unwrap() == bytes, "refused file was modified");
+
+    // Saved before a setting existed: it opens where this build has the
+    // value that gives the older planets, and only there.
+    let path = scratch("added-setting");
+    let without = Terrain {
+        settings: this.settings.iter().filter(|(n, _)| n != "mountain_size").cloned().collect(),
+        ..this.clone()
+    };
+    let want = edit(&mut World::with_source(planet(), &without, Some(&path)).unwrap());
+    let value = this.settings.iter().find(|(n, _)| n == "mountain_size").unwrap().1.clone();
+    let knows = Terrain { added_settings: vec![("mountain_size".into(), value)], ..this.clone() };
+    let opened = World::with_source(planet(), &knows, Some(&path)).unwrap();
+    assert_eq!(edited_voxels(&opened), want);
+    drop(opened);
+    for other in
+        [Terrain { added_settings: vec![("mountain_size".into(), "1.0".into())], ..this.clone() }, this.clone()]
+    {
+        let refused = World::with_source(planet(), &other, Some(&path));
+        assert!(
+            matches!(&refused, Err(WorldError::OtherPlanet { stored, .. }) if stored.contains("mountain_size")),
+            "{refused:?}"
+        );
+    }
+
+    // Another seed: another planet, named by the setting that differs.
+    let refused = World::open(PlanetSettings::small(4), Some(&path)).unwrap_err();
+    assert!(refused.to_string().contains("seed=3") && refused.to_string().contains("seed=4"), "{refused}");
+
+    // A format-1 world (settings' Debug text, before terrain versions) of
+    // this planet opens with its edits and is rewritten as this format;
+    // one of another planet is refused untouched.
+    let path = scratch("format-1");
+    let ground = planet().surface_point(DVec3::Z);
+    let at = planet().layout().voxel_at(ground).unwrap();
+    let key = planet().layout().chunk_of(at);
+    let write_v1 = |path: &Path, planet_text: &str| {
+        let db = redb::Database::create(path).unwrap();
+        let txn = db.begin_write().unwrap();
+        {
+            let mut meta = txn.open_table(store::META).unwrap();
+            meta.insert("format", [1u8].as_slice()).unwrap();
+            meta.insert("planet", planet_text.as_bytes()).unwrap();
+            let chunks: redb::TableDefinition<(u8, u32, u32, i32), &[u8]> = redb::TableDefinition::new("chunk_edits");
+            let mut table = txn.open_table(chunks).unwrap();
+            table
+                .insert((key.face as u8, key.x, key.y, key.layer), store::encode(key, &[(at, Voxel::SNOW)]).as_slice())
+                .unwrap();
+        }
+        txn.commit().unwrap();
+    };
+    write_v1(&path, &format!("{settings:?}"));
+    let opened = World::open(settings.clone(), Some(&path)).unwrap();
+    assert_eq!(opened.source().voxel(at).unwrap(), Voxel::SNOW);
+    drop(opened);
+    let db = redb::Database::open(&path).unwrap();
+    let format = redb::ReadableDatabase::begin_read(&db)
+        .unwrap()
+        .open_table(store::META)
+        .unwrap()
+        .get("format")
+        .unwrap()
+        .unwrap()
+        .value()
+        .to_vec();
+    assert_eq!(format, [FORMAT_VERSION]);
+    drop(db);
+    assert_eq!(World::open(settings.clone(), Some(&path)).unwrap().source().voxel(at).unwrap(), Voxel::SNOW);
+    let path = scratch("format-1-other");
+    write_v1(&path, &format!("{:?}", PlanetSettings::small(4)));
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(matches!(World::open(settings, Some(&path)), Err(WorldError::OtherPlanet { .. })));
+    assert!(std::fs::read(&path).unwrap() == bytes, "a foreign format-1 file was modified");
 }
 
 #[test]
