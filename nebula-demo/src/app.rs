@@ -33,6 +33,8 @@ pub struct View {
     pub camera: Camera,
     /// Vertical field of view, degrees.
     pub fov_y_degrees: f64,
+    /// Height of the picture, pixels (the LOD tree's screen).
+    pub screen_height_px: f64,
 }
 
 /// The GPU, for uploads and drawing.
@@ -89,6 +91,14 @@ impl PlanetApp {
     pub fn with_voxels(planet: Arc<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
         let streamer = Streamer::new(planet, settings, view.camera, threads, &mut |key, mesh| upload(&gpu, key, mesh))?;
+        let refined = streamer.tree().screen_space().threshold_px();
+        if refined > settings.threshold_px {
+            eprintln!(
+                "nebula-demo: --sse {} px at this field of view and size would need more than the LOD tree's budget of \
+                 {} nodes; refining to {refined:.3} px instead",
+                settings.threshold_px, settings.max_nodes
+            );
+        }
         let mut world = World::new();
         world.insert_resource(PlanetStream(streamer));
         world.insert_resource(view);
@@ -304,6 +314,11 @@ impl PlanetApp {
 /// One frame of the streamer for the current view, uploading into the GPU
 /// arena.
 fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<GpuRes>) {
+    // A zoom or a resized window refines for the new view at once.
+    let tau = stream.0.tree().settings().threshold_px;
+    if let Err(error) = stream.0.set_view(tau, view.screen_height_px, view.fov_y_degrees) {
+        eprintln!("nebula-demo: keeping the last view for the LOD tree: {error}");
+    }
     let mut uploaded = false;
     stream.0.update(view.camera, &mut |key, mesh| {
         uploaded = true;

@@ -180,6 +180,7 @@ pub fn shot_view(shot: &Shot) -> anyhow::Result<View> {
     let view = View {
         camera: camera(shot.position, forward, up, f64::from(shot.size.0) / f64::from(shot.size.1)),
         fov_y_degrees: shot.fov_y_degrees,
+        screen_height_px: f64::from(shot.size.1),
     };
     view.camera.check()?;
     anyhow::ensure!(

@@ -658,6 +658,7 @@ impl Windowed {
         state.app.set_view(View {
             camera: camera(self.eye, forward, up, f64::from(size.0) / f64::from(size.1.max(1))),
             fov_y_degrees: self.shot.fov_y_degrees,
+            screen_height_px: f64::from(size.1.max(1)),
         });
         state.app.set_sea_drawn(self.shot.background.is_none() && self.view == DebugView::Shaded);
         state.app.step();

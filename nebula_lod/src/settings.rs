@@ -33,6 +33,15 @@ pub struct LodSettings {
     pub finest_lod: u8,
     /// Neighbour LOD rule.
     pub balance: BalanceMode,
+    /// A bound on the nodes the tree may hold (default 400,000): where τ,
+    /// the field of view and the screen height would ask for more, the
+    /// tree refines to a larger τ that keeps it within this
+    /// ([`LodSettings::effective_threshold_px`]), so any view renders
+    /// within memory instead of refining for minutes. The default takes a
+    /// 1080-line screen at 60° and τ = 1 as asked (a bound of 338,000;
+    /// such a tree holds about 170,000 nodes); a 640×400 Earth view at
+    /// τ = 0.01 px is drawn at 0.27 px.
+    pub max_nodes: usize,
 }
 
 impl Default for LodSettings {
@@ -44,6 +53,7 @@ impl Default for LodSettings {
             hysteresis: 0.2,
             finest_lod: 0,
             balance: BalanceMode::Unrestricted,
+            max_nodes: 400_000,
         }
     }
 }
@@ -59,6 +69,55 @@ impl LodSettings {
             return Err(LodError::BadHysteresis { value: self.hysteresis });
         }
         Ok(ScreenSpace::new(self.screen_height_px, self.fov_y_degrees, self.threshold_px)?)
+    }
+
+    /// The τ a tree of a planet whose coarsest LOD is `max_lod` refines to:
+    /// [`LodSettings::threshold_px`], or the least larger τ whose bound on
+    /// the node count ([`LodSettings::node_bound`]) is within
+    /// [`LodSettings::max_nodes`].
+    ///
+    /// # Errors
+    /// As [`LodSettings::screen_space`]; [`LodError::NodeBudget`] for a
+    /// budget too small for the face roots and their children.
+    pub fn effective_threshold_px(&self, max_lod: u8) -> Result<f64, LodError> {
+        let screen = self.screen_space()?;
+        let fits = |tau: f64| Self::node_bound(screen.k() / tau, max_lod) <= self.max_nodes as f64;
+        if fits(self.threshold_px) {
+            return Ok(self.threshold_px);
+        }
+        // The bound falls as τ grows and is 6 + 24 + … past the point where
+        // no node splits, so bisect between τ and a τ that fits.
+        let mut high = self.threshold_px;
+        let mut tries = 0;
+        while !fits(high) {
+            high *= 2.0;
+            tries += 1;
+            if tries > 2_000 || !high.is_finite() {
+                return Err(LodError::NodeBudget { max_nodes: self.max_nodes });
+            }
+        }
+        let mut low = self.threshold_px;
+        for _ in 0..60 {
+            let mid = 0.5 * (low + high);
+            if fits(mid) { high = mid } else { low = mid }
+        }
+        Ok(high)
+    }
+
+    /// An upper bound on the nodes of a tree whose split distance at each
+    /// LOD is `k_over_tau` voxel edges of that LOD (D_split = e·K/τ):
+    /// a LOD-L node exists only under a LOD-(L+1) parent closer than its
+    /// split distance, that is `K/τ / 32` parent widths; parents whose
+    /// bounds come that close lie in a disc of that radius (plus a cell
+    /// diagonal) around the point under the eye, at most 1.5 times as
+    /// many cells as its area holds (the cube map's area distortion is
+    /// 1.41); four children each; and never more than the planet has.
+    /// Measured on Earth views near the ground it is 2–3 times the nodes
+    /// the tree holds.
+    #[must_use]
+    pub fn node_bound(k_over_tau: f64, max_lod: u8) -> f64 {
+        let per_lod = 4.0 * 1.5 * std::f64::consts::PI * (k_over_tau / 32.0 + 1.5).powi(2);
+        6.0 + (0..max_lod).map(|lod| per_lod.min(6.0 * 4f64.powi(i32::from(max_lod - lod)))).sum::<f64>()
     }
 }
 
@@ -147,6 +206,12 @@ pub enum LodError {
     BadCamera {
         /// What is wrong.
         reason: String,
+    },
+    /// A node budget too small for any tree of the planet.
+    #[error("a LOD tree budget of {max_nodes} nodes is too small for this planet")]
+    NodeBudget {
+        /// The budget given.
+        max_nodes: usize,
     },
     /// The camera is inside the planet: below the lowest possible surface.
     #[error("camera is {distance} m from the centre, inside the planet (lowest surface at {min_surface_radius} m)")]

@@ -398,3 +398,112 @@ fn the_terrain_horizon_hides_far_leaves_near_the_ground() {
     dug.set_voxel(deep, nebula_voxel::Voxel::AIR).unwrap();
     assert!(dug.lowest_surface_radius().unwrap() < lowest - 10_000.0);
 }
+
+/// A camera `height` metres over Earth's ground in direction `dir`,
+/// looking 10° down towards `heading` (any horizontal direction).
+fn earth_camera(earth: &ProceduralPlanet, dir: DVec3, height: f64, heading: DVec3) -> Camera {
+    let up = dir.normalize();
+    let position = up * (earth.settings().radius + earth.height_at(up).max(0.0) + height);
+    let level = (heading - up * heading.dot(up)).normalize();
+    let down = 10f64.to_radians();
+    Camera { position, forward: level * down.cos() - up * down.sin(), up, aspect: 1.6 }
+}
+
+#[test]
+fn the_node_budget_holds_for_any_threshold_field_of_view_and_screen() {
+    // Random Earth poses near the ground: the bound on the node count
+    // holds for the settings as given, and a τ of 0.01 px or a field of
+    // view of 0.001° (millions of nodes asked for) refine to a larger τ
+    // that keeps the tree within its budget, in seconds.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(1)).unwrap();
+    let max_lod = earth.layout().max_lod();
+    let mut state = 0xb0d9_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let base = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+    let cases = [
+        base,
+        LodSettings { threshold_px: 0.01, max_nodes: 60_000, ..base },
+        LodSettings { fov_y_degrees: 0.001, max_nodes: 60_000, ..base },
+        LodSettings { screen_height_px: 100_000.0, max_nodes: 60_000, ..base },
+    ];
+    for (n, settings) in cases.into_iter().enumerate() {
+        let dir = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+        let heading = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+        let camera = earth_camera(&earth, dir, 20.0 + 3_000.0 * unit(), heading);
+        let started = std::time::Instant::now();
+        let mut tree = LodTree::new(&earth, settings).unwrap();
+        tree.update(&earth, &camera).unwrap();
+        let tau = tree.screen_space().threshold_px();
+        let nodes = tree.stats().nodes;
+        let bound = LodSettings::node_bound(tree.screen_space().k() / tau, max_lod);
+        println!(
+            "case {n}: τ {} -> {tau:.4} px, {nodes} nodes (bound {bound:.0}, budget {}), {:.2} s",
+            settings.threshold_px,
+            settings.max_nodes,
+            started.elapsed().as_secs_f64()
+        );
+        assert!(nodes as f64 <= bound, "case {n}: {nodes} nodes above the bound {bound}");
+        assert!(nodes <= settings.max_nodes, "case {n}: {nodes} nodes, budget {}", settings.max_nodes);
+        if n == 0 {
+            assert_eq!(tau, settings.threshold_px, "a view within the budget is refined as asked");
+            assert!(bound < 4.0 * nodes as f64, "the bound is loose: {bound} for {nodes}");
+        } else {
+            assert!(tau > settings.threshold_px);
+            // Not raised more than the budget needs: 5 % less would not fit.
+            let k = tree.screen_space().k();
+            assert!(LodSettings::node_bound(k / (tau * 0.95), max_lod) > settings.max_nodes as f64);
+        }
+    }
+    // A 1080-line screen at 60° and τ = 1 is within the default budget.
+    let hd = LodSettings::default();
+    assert_eq!(hd.effective_threshold_px(max_lod).unwrap(), 1.0);
+    assert!(matches!(
+        LodSettings { max_nodes: 10, ..hd }.effective_threshold_px(max_lod),
+        Err(LodError::NodeBudget { max_nodes: 10 })
+    ));
+}
+
+#[test]
+fn a_changed_view_refines_as_a_tree_made_for_it() {
+    // Zooming in (60° -> 15°), a resized window and a new τ: the tree
+    // updated after `set_view` has the leaves of a tree made with those
+    // settings from the start, and frustum culling uses the new field of
+    // view.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(1)).unwrap();
+    let camera = earth_camera(&earth, DVec3::new(0.2, 0.9, 0.4), 400.0, DVec3::X);
+    let start = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+    let mut tree = LodTree::new(&earth, start).unwrap();
+    tree.update(&earth, &camera).unwrap();
+    tree.cull(&camera).unwrap();
+    // Finer views (zoom in, more pixels) give the fresh tree's leaves
+    // exactly; coarser ones keep the split/merge rule with its hysteresis
+    // (a split node merges only past its merge distance).
+    for (tau, height, fov, finer) in
+        [(1.0, 400.0, 15.0, true), (1.0, 800.0, 15.0, true), (2.0, 800.0, 40.0, false), (1.0, 400.0, 60.0, false)]
+    {
+        tree.set_view(tau, height, fov).unwrap();
+        tree.update(&earth, &camera).unwrap();
+        tree.cull(&camera).unwrap();
+        let case = format!("τ {tau}, {height} px, {fov}°");
+        let settings = LodSettings { threshold_px: tau, screen_height_px: height, fov_y_degrees: fov, ..start };
+        let mut fresh = LodTree::new(&earth, settings).unwrap();
+        fresh.update(&earth, &camera).unwrap();
+        fresh.cull(&camera).unwrap();
+        if finer {
+            assert!(tree.leaves() == fresh.leaves(), "{case}: other leaves than a tree made for it");
+            assert!(tree.visible_leaves() == fresh.visible_leaves(), "{case}: other visible leaves");
+        }
+        let split = |lod: u8| fresh.screen_space().transition_distance(earth.layout().voxel_edge(lod));
+        for leaf in tree.leaves() {
+            let distance = tree.node_bounds(leaf).unwrap().distance(camera.position);
+            assert!(leaf.lod == 0 || distance >= split(leaf.lod) * (1.0 - 1e-9), "{case}: {leaf:?} should split");
+            if let Some(up) = parent(leaf).filter(|_| leaf.lod < earth.layout().max_lod()) {
+                let distance = tree.node_bounds(up).unwrap().distance(camera.position);
+                let merge = split(up.lod) / (1.0 - settings.hysteresis);
+                assert!(distance <= merge * (1.0 + 1e-9), "{case}: {up:?} should merge");
+            }
+        }
+    }
+    assert!(tree.set_view(f64::NAN, 400.0, 60.0).is_err());
+    assert_eq!(tree.settings().fov_y_degrees, 60.0, "a refused view leaves the tree as it was");
+}

@@ -61,6 +61,8 @@ pub struct LodStats {
     pub nodes_evaluated: usize,
     /// Leaves in the tree.
     pub leaves: usize,
+    /// Nodes in the tree (leaves and split nodes).
+    pub nodes: usize,
     /// Leaves in view at the last [`LodTree::cull`].
     pub visible_leaves: usize,
     /// Leaves per LOD (index = LOD).
@@ -112,8 +114,8 @@ impl LodTree {
     /// # Errors
     /// [`LodError`] for bad settings or a source that refuses the roots.
     pub fn new<S: VoxelSource + ?Sized>(source: &S, settings: LodSettings) -> Result<Self, LodError> {
-        let screen = settings.screen_space()?;
         let layout = *source.layout();
+        let screen = Self::budgeted_screen(&settings, layout.max_lod())?;
         if settings.finest_lod > layout.max_lod() {
             return Err(LodError::BadFinestLod { finest_lod: settings.finest_lod, max_lod: layout.max_lod() });
         }
@@ -147,10 +149,48 @@ impl LodTree {
         Ok(tree)
     }
 
+    /// The screen-space constants the tree refines with: the settings'
+    /// τ raised where the node budget needs it.
+    fn budgeted_screen(settings: &LodSettings, max_lod: u8) -> Result<ScreenSpace, LodError> {
+        let tau = settings.effective_threshold_px(max_lod)?;
+        Ok(ScreenSpace::new(settings.screen_height_px, settings.fov_y_degrees, tau)?)
+    }
+
     /// The settings in use.
     #[must_use]
     pub fn settings(&self) -> &LodSettings {
         &self.settings
+    }
+
+    /// The screen-space constants the tree refines with: K of the settings'
+    /// screen and field of view, and the τ it refines to (the settings' τ,
+    /// or a larger one where [`LodSettings::max_nodes`] needs it).
+    #[must_use]
+    pub fn screen_space(&self) -> &ScreenSpace {
+        &self.screen
+    }
+
+    /// Changes the view the tree refines for (a zoom, a resized window, a
+    /// quality setting): τ, the screen height and the vertical field of
+    /// view. Every node is decided again at the next update; nothing
+    /// happens when they are unchanged.
+    ///
+    /// # Errors
+    /// As [`LodSettings::effective_threshold_px`]; the tree is unchanged
+    /// then.
+    pub fn set_view(&mut self, threshold_px: f64, screen_height_px: f64, fov_y_degrees: f64) -> Result<(), LodError> {
+        let settings = LodSettings { threshold_px, screen_height_px, fov_y_degrees, ..self.settings };
+        if settings == self.settings {
+            return Ok(());
+        }
+        self.screen = Self::budgeted_screen(&settings, self.layout.max_lod())?;
+        self.settings = settings;
+        let columns: Vec<ChunkColumn> = self.nodes.keys().copied().collect();
+        self.queue.clear();
+        for column in columns {
+            self.schedule(column, 0.0);
+        }
+        Ok(())
     }
 
     /// The planet's coarsest LOD (the face roots).
@@ -170,6 +210,7 @@ impl LodTree {
     #[must_use]
     pub fn stats(&self) -> LodStats {
         let mut stats = self.stats.clone();
+        stats.nodes = self.nodes.len();
         stats.max_neighbor_lod_diff = self
             .leaves
             .values()

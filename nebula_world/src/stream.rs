@@ -790,9 +790,31 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// The vertex shader's per-frame constants for an eye at `eye`.
     #[must_use]
     pub fn frame_draw(&self, eye: nebula_math::DVec3) -> FrameDraw {
-        let settings = self.tree.settings();
-        let k = settings.screen_space().map_or(1.0, |s| s.k());
-        FrameDraw::new(eye, k, settings.threshold_px, self.options.morph != MorphRule::Off)
+        // The τ the tree refines to: the morph must follow the same one.
+        let screen = self.tree.screen_space();
+        FrameDraw::new(eye, screen.k(), screen.threshold_px(), self.options.morph != MorphRule::Off)
+    }
+
+    /// Changes the view the LOD tree refines and culls for: τ, the screen
+    /// height and the vertical field of view (a zoom, a resized window, a
+    /// quality setting). Call it before [`Streamer::update`] whenever one
+    /// may have changed; nothing happens when none did.
+    ///
+    /// # Errors
+    /// Bad values ([`LodError`]); the view is unchanged then.
+    pub fn set_view(
+        &mut self,
+        threshold_px: f64,
+        screen_height_px: f64,
+        fov_y_degrees: f64,
+    ) -> Result<(), StreamError> {
+        let before = *self.tree.settings();
+        self.tree.set_view(threshold_px, screen_height_px, fov_y_degrees)?;
+        if *self.tree.settings() != before {
+            self.culled_for = None;
+            self.tree_changed = true;
+        }
+        Ok(())
     }
 
     /// Figures of what the draw list shows.
@@ -1039,7 +1061,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     keep.insert(up);
                 }
             }
-            let k = tree.settings().screen_space().map_or(1.0, |s| s.k());
+            let k = tree.screen_space().k();
             self.prefetch.clear();
             for column in keep {
                 let layers = match cache.columns.get_mut(&column) {
@@ -1116,7 +1138,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
         // Jobs: every chunk of a wanted column not meshed and not running,
         // the largest projected voxel first.
-        let k = tree.settings().screen_space().map_or(1.0, |s| s.k());
+        let k = tree.screen_space().k();
         let mut jobs = Vec::new();
         let mut seen = HashSet::default();
         for column in wanted {
