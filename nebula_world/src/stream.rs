@@ -329,8 +329,33 @@ struct MeshResult {
     key: ChunkKey,
     /// The voxel generation the mesh was made from.
     generation: u64,
-    result: Result<RenderMesh, MeshError>,
+    /// The mesh, or why there is none (an error, or a panic in the voxel
+    /// source or the mesher, as text).
+    result: Result<RenderMesh, String>,
     millis: f64,
+}
+
+/// A chunk whose meshing failed: it is asked for again after a wait that
+/// doubles with each failure, and its stand-in is drawn meanwhile.
+#[derive(Clone, Copy, Debug)]
+struct Failure {
+    attempts: u32,
+    /// The first frame it may be tried again.
+    retry_at: u64,
+}
+
+/// Frames before the first retry of a failed chunk; each further failure
+/// doubles it, up to 64 times (about 8 s at 60 fps).
+pub const RETRY_AFTER_FRAMES: u64 = 8;
+
+/// A meshing job that failed (an error, or a panic in the voxel source or
+/// the mesher), reported once per chunk ([`Streamer::take_mesh_failures`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MeshFailure {
+    /// The chunk.
+    pub key: ChunkKey,
+    /// What went wrong.
+    pub message: String,
 }
 
 /// Meshing jobs: the shared priority queue, the workers on a thread pool of
@@ -518,6 +543,10 @@ pub struct Streamer<S, H> {
     /// since.
     prefetched_at: u64,
     tree_changed: bool,
+    /// Chunks whose meshing failed and when to try them again.
+    failed: HashMap<ChunkKey, Failure>,
+    /// First failures not taken by the game yet.
+    failures: Vec<MeshFailure>,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -541,6 +570,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|n| format!("nebula-mesh-{n}"))
+            // Jobs catch their own panics; without a handler rayon would
+            // abort the game on any other.
+            .panic_handler(|panic| eprintln!("nebula: a meshing thread panicked: {}", panic_text(&*panic)))
             .build()
             .map_err(|e| StreamError::Threads(e.to_string()))?;
         let mut streamer = Self {
@@ -580,6 +612,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             prefetch: Vec::new(),
             prefetched_at: 0,
             tree_changed: true,
+            failed: HashMap::default(),
+            failures: Vec::new(),
         };
         streamer.mesh_roots(upload)?;
         Ok(streamer)
@@ -594,13 +628,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let column = ChunkColumn { face, lod: max_lod, x: 0, y: 0 };
             for layer in self.voxels.surface_chunk_layers(column)? {
                 let key = column.chunk(layer);
-                let mesh = mesh_chunk(
-                    &*self.voxels,
-                    key,
-                    &ChunkLodContext::uniform(max_lod),
-                    MeshOptions::STREAMING,
-                    &mut buffer,
-                )?;
+                let mesh = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    mesh_chunk(
+                        &*self.voxels,
+                        key,
+                        &ChunkLodContext::uniform(max_lod),
+                        MeshOptions::STREAMING,
+                        &mut buffer,
+                    )
+                }))
+                .map_err(|panic| StreamError::Panicked { key, message: panic_text(&*panic) })??;
                 let done = MeshResult { key, generation: 0, result: Ok(mesh.render_mesh()), millis: 0.0 };
                 self.store(done, upload);
             }
@@ -866,11 +903,27 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if self.draw.min_surface_radius.is_finite() { self.draw.min_surface_radius } else { self.min_surface_radius() }
     }
 
-    /// Uploads a finished job into the cache (a failed one is logged and
-    /// stored empty, so its column is not blocked for ever).
+    /// Uploads a finished job into the cache. A failed one is not stored:
+    /// it is reported once, asked for again after a wait that doubles each
+    /// time, and what stands in for it stays drawn meanwhile. Returns
+    /// whether it failed.
     fn store(&mut self, done: MeshResult, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
         let key = done.key;
         let column = key.column();
+        let mesh = match done.result {
+            Ok(mesh) => mesh,
+            Err(message) => {
+                let failure = self.failed.entry(key).or_insert(Failure { attempts: 0, retry_at: 0 });
+                failure.attempts += 1;
+                failure.retry_at = self.frame + (RETRY_AFTER_FRAMES << (failure.attempts - 1).min(6));
+                if failure.attempts == 1 {
+                    eprintln!("nebula: meshing {key:?} failed, retrying with backoff: {message}");
+                    self.failures.push(MeshFailure { key, message });
+                }
+                return true;
+            }
+        };
+        self.failed.remove(&key);
         if let Some(&wanted) = self.cache.required.get(&key) {
             if done.generation < wanted {
                 // Made from voxels before an edit: asked for again.
@@ -878,13 +931,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             self.cache.required.remove(&key);
         }
-        let (mesh, failed) = match done.result {
-            Ok(mesh) => (mesh, false),
-            Err(error) => {
-                eprintln!("nebula: meshing {key:?} failed, drawing it empty: {error}");
-                (RenderMesh::default(), true)
-            }
-        };
         let handle = upload(key, &mesh);
         let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
         let loaded =
@@ -897,7 +943,22 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
             self.cache.stale.remove(&key);
         }
-        failed
+        false
+    }
+
+    /// Meshing failures since the last call, one per chunk (its first):
+    /// errors of the voxel source or the mesher, and panics in them, which
+    /// are caught. Each chunk is retried with backoff; chunks failing now
+    /// are [`Streamer::failing_chunks`].
+    pub fn take_mesh_failures(&mut self) -> Vec<MeshFailure> {
+        std::mem::take(&mut self.failures)
+    }
+
+    /// Chunks still asked for whose last meshing attempt failed (retried
+    /// with backoff).
+    #[must_use]
+    pub fn failing_chunks(&self) -> usize {
+        self.failed.len()
     }
 
     /// Picks up finished meshes and uploads them.
@@ -1173,6 +1234,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if cache.room_to_prefetch() {
             jobs.extend(self.prefetch.iter().copied());
         }
+        // A chunk that failed waits for its retry; one no longer asked for
+        // is forgotten.
+        if !self.failed.is_empty() {
+            let asked: HashSet<ChunkKey> = jobs.iter().map(|job| job.key).collect();
+            self.failed.retain(|key, _| asked.contains(key));
+            let failed = &self.failed;
+            jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+        }
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
             let JobState { queue, running, .. } = &mut *state;
@@ -1206,15 +1275,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     });
                     let Some((job, (voxels, generation))) = job else { break };
                     let start = Instant::now();
-                    let result = BUFFER.with(|buffer| {
-                        mesh_chunk(
-                            &*voxels,
-                            job.key,
-                            &ChunkLodContext::uniform(job.key.lod),
-                            MeshOptions::STREAMING,
-                            &mut buffer.borrow_mut(),
-                        )
-                        .map(|mesh| mesh.render_mesh())
+                    // A panic in the voxel source (a game's own) or the
+                    // mesher fails this chunk, not the game.
+                    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        BUFFER.with(|buffer| {
+                            mesh_chunk(
+                                &*voxels,
+                                job.key,
+                                &ChunkLodContext::uniform(job.key.lod),
+                                MeshOptions::STREAMING,
+                                &mut buffer.borrow_mut(),
+                            )
+                            .map(|mesh| mesh.render_mesh())
+                            .map_err(|error| error.to_string())
+                        })
+                    }))
+                    .unwrap_or_else(|panic| {
+                        // The buffer may be half written: start afresh.
+                        BUFFER.with(|buffer| *buffer.borrow_mut() = ChunkMeshBuffer::new());
+                        Err(format!("panicked: {}", panic_text(&*panic)))
                     });
                     let millis = start.elapsed().as_secs_f64() * 1e3;
                     // It stays in the running set until collected, so no
@@ -1272,6 +1351,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             cache.columns.remove(&column);
         }
     }
+}
+
+/// The message of a caught panic.
+fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
 }
 
 /// Why a visible leaf is drawn as a coarser ancestor of its own.
@@ -1407,6 +1495,15 @@ pub enum StreamError {
     /// The voxel source refused a column.
     #[error(transparent)]
     Voxel(#[from] nebula_voxel::VoxelError),
+    /// The voxel source or the mesher panicked on a face root (meshed
+    /// before the first frame, so nothing can stand in for it).
+    #[error("meshing the face root {key:?} panicked: {message}")]
+    Panicked {
+        /// The root chunk.
+        key: ChunkKey,
+        /// The panic's message.
+        message: String,
+    },
     /// The meshing thread pool could not start.
     #[error("the meshing threads could not start: {0}")]
     Threads(String),

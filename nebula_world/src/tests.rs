@@ -876,4 +876,116 @@ mod streaming {
         }
         println!("tower: {frames} frames to settle, {before} -> {} triangles", streamer.figures().triangles);
     }
+
+    /// The small planet, whose chunks with an even `x` panic when filled
+    /// while `panics` lasts (a game's voxel source with a bug).
+    struct Flaky {
+        planet: ProceduralPlanet,
+        panics: AtomicUsize,
+        /// Panic at the face roots too.
+        at_roots: bool,
+    }
+
+    impl VoxelSource for Flaky {
+        fn layout(&self) -> &nebula_voxel::ChunkLayout {
+            self.planet.layout()
+        }
+        fn voxel(&self, at: nebula_voxel::VoxelCoord) -> Result<nebula_voxel::Voxel, nebula_voxel::VoxelError> {
+            self.planet.voxel(at)
+        }
+        fn fill_chunk(
+            &self,
+            key: nebula_voxel::ChunkKey,
+            out: &mut nebula_voxel::ChunkVoxels,
+        ) -> Result<(), nebula_voxel::VoxelError> {
+            let root = key.lod == self.planet.layout().max_lod();
+            assert!(!(root && self.at_roots), "a bug in the game's voxel source at a root");
+            if !root
+                && key.x.is_multiple_of(2)
+                && self.panics.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1)).is_ok()
+            {
+                panic!("a bug in the game's voxel source");
+            }
+            self.planet.fill_chunk(key, out)
+        }
+        fn surface_bounds(
+            &self,
+            column: nebula_voxel::ChunkColumn,
+        ) -> Result<nebula_voxel::SurfaceBounds, nebula_voxel::VoxelError> {
+            self.planet.surface_bounds(column)
+        }
+        fn geometric_error(&self, lod: u8) -> f64 {
+            self.planet.geometric_error(lod)
+        }
+        fn lowest_surface_radius(&self) -> Option<f64> {
+            self.planet.lowest_surface_radius()
+        }
+    }
+
+    #[test]
+    fn a_panicking_voxel_source_fails_chunks_not_the_game() {
+        // 40 panics in the game's fill_chunk: each failing chunk is
+        // reported once, drawn through its stand-in meanwhile (no hole in
+        // any frame, nothing drawn empty), retried with backoff, and the
+        // view settles to the same triangles as with a source that never
+        // panics. Without the catch, rayon aborts the process here.
+        let planet = || ProceduralPlanet::new(PlanetSettings::small(7)).unwrap();
+        let up = DVec3::new(0.2, 0.9, 0.3).normalize();
+        let ground = planet().surface_point(up);
+        let eye = ground + up * 60.0;
+        let camera = Camera { position: eye, forward: up.any_orthonormal_vector() - up * 0.3, up, aspect: 1.6 };
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        fn settle<S: VoxelSource + 'static>(streamer: &mut Streamer<S, Sized>, camera: Camera) -> usize {
+            let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+            for frames in 0.. {
+                streamer.update(camera, &mut upload);
+                assert_eq!(streamer.draw_list().holes, 0, "frame {frames}: a hole");
+                if streamer.settled() {
+                    return streamer.figures().triangles;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                assert!(frames < 20_000, "did not settle");
+            }
+            unreachable!()
+        }
+        // A panic meshing a face root (before the first frame) is an error
+        // of Streamer::new, not a panic in the game.
+        let refused = Streamer::new(
+            Arc::new(Flaky { planet: planet(), panics: AtomicUsize::new(0), at_roots: true }),
+            lod,
+            camera,
+            2,
+            &mut { upload },
+        );
+        assert!(matches!(&refused, Err(crate::stream::StreamError::Panicked { .. })), "{:?}", refused.err());
+        let flaky = Arc::new(Flaky { planet: planet(), panics: AtomicUsize::new(40), at_roots: false });
+        let mut streamer = Streamer::new(flaky.clone(), lod, camera, 2, &mut { upload }).unwrap();
+        let triangles = settle(&mut streamer, camera);
+        assert_eq!(flaky.panics.load(Ordering::SeqCst), 0, "the source never panicked: the check cannot tell");
+        let failures = streamer.take_mesh_failures();
+        assert!(
+            !failures.is_empty() && failures.iter().all(|f| f.message.contains("a bug in the game's voxel source"))
+        );
+        let mut keys: Vec<_> = failures.iter().map(|f| f.key).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), failures.len(), "a chunk was reported twice");
+        // Prefetching out of view retries its own failures too.
+        for frames in 0.. {
+            if streamer.prefetched() && streamer.failing_chunks() == 0 {
+                break;
+            }
+            streamer.update(camera, &mut { upload });
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(frames < 20_000, "{} chunks still failing", streamer.failing_chunks());
+        }
+        let plain = Arc::new(planet());
+        let mut reference = Streamer::new(plain, lod, camera, 2, &mut { upload }).unwrap();
+        assert_eq!(triangles, settle(&mut reference, camera), "a failed chunk is drawn other than it should be");
+        println!(
+            "40 panics in {} chunks: reported once each, retried, settled at {triangles} triangles",
+            failures.len()
+        );
+    }
 }
