@@ -14,7 +14,12 @@
 //! edit. A single dug voxel shows at LOD `L` only if it is that corner; a
 //! crater shows at every LOD whose voxels are smaller than about the crater.
 
-use std::collections::{BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeSet, HashSet};
+
+// Persistent maps: a clone shares everything, an insert copies the path it
+// changes, so an edit to a source a meshing snapshot holds costs the edit,
+// not every edit so far.
+use imbl::{HashMap as SharedMap, HashSet as SharedSet};
 
 use nebula_math::{DVec3, FaceEdge};
 
@@ -25,19 +30,20 @@ use crate::{
 use ndshape::ConstShape;
 
 /// A [`VoxelSource`] with LOD-0 edits on top (see the module docs).
-/// Cloning copies the edits (and clones the base: a `ProceduralPlanet`
-/// clone starts with an empty height cache).
+/// Cloning is cheap whatever the edits: they are kept in persistent maps
+/// (`imbl`) that a clone shares, and an edit after a clone copies only
+/// what it changes (a `ProceduralPlanet` base shares its height memo too).
 #[derive(Clone, Debug)]
 pub struct EditedSource<S> {
     base: S,
     /// LOD-0 voxels that differ from `base`.
-    fine: HashMap<VoxelCoord, Voxel>,
+    fine: SharedMap<VoxelCoord, Voxel>,
     /// The keys of `fine` by LOD-0 chunk, for saving a chunk's edits.
-    fine_by_chunk: HashMap<ChunkKey, HashSet<VoxelCoord>>,
+    fine_by_chunk: SharedMap<ChunkKey, SharedSet<VoxelCoord>>,
     /// Chunks (any LOD) whose padded region holds a voxel the edits changed.
-    touched_chunks: HashSet<ChunkKey>,
+    touched_chunks: SharedSet<ChunkKey>,
     /// Per column (any LOD): lowest and highest LOD-0 layer edited inside.
-    touched_columns: HashMap<ChunkColumn, (i64, i64)>,
+    touched_columns: SharedMap<ChunkColumn, (i64, i64)>,
 }
 
 impl<S: VoxelSource> From<S> for EditedSource<S> {
@@ -51,10 +57,10 @@ impl<S: VoxelSource> EditedSource<S> {
     pub fn new(base: S) -> Self {
         Self {
             base,
-            fine: HashMap::new(),
-            fine_by_chunk: HashMap::new(),
-            touched_chunks: HashSet::new(),
-            touched_columns: HashMap::new(),
+            fine: SharedMap::new(),
+            fine_by_chunk: SharedMap::new(),
+            touched_chunks: SharedSet::new(),
+            touched_columns: SharedMap::new(),
         }
     }
 

@@ -216,8 +216,9 @@ pub struct ProceduralPlanet {
     /// S: steepest height change per lattice step, layers per cell.
     max_slope: f64,
     /// Heights of recently filled chunk columns, shared by their radial
-    /// layers.
-    heights: HeightCache,
+    /// layers, and by clones (a memo of the same pure function, so a clone
+    /// made for an edit keeps what is cached).
+    heights: Arc<HeightCache>,
 }
 
 /// Chunk columns whose heights [`HeightCache`] keeps: about 38 MB. A
@@ -315,13 +316,6 @@ impl HeightCache {
     }
 }
 
-impl Clone for HeightCache {
-    /// A clone starts empty: the cache is not part of the planet's value.
-    fn clone(&self) -> Self {
-        Self::default()
-    }
-}
-
 impl std::fmt::Debug for HeightCache {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let columns = self.entries.lock().map_or(0, |e| e.0.len());
@@ -414,7 +408,7 @@ impl ProceduralPlanet {
             layer_height,
             sum_steps: [0.0; 3],
             max_slope: 0.0,
-            heights: HeightCache::default(),
+            heights: Arc::default(),
         };
         let (sum_steps, max_slope) = planet.measure_slopes();
         planet.sum_steps = sum_steps;

@@ -115,7 +115,9 @@ pub struct Applied {
 #[derive(Debug)]
 pub struct World<S = ProceduralPlanet> {
     /// Shared with renderers and meshing jobs ([`World::voxels`]); an edit
-    /// copies it only while such a snapshot is alive.
+    /// while such a snapshot is alive clones it, which shares the edits'
+    /// persistent maps: the edit costs what it changes, not every edit so
+    /// far.
     source: Arc<EditedSource<S>>,
     store: Option<WorldStore>,
     /// LOD-0 chunks edited but not yet saved (after a failed save).
@@ -173,7 +175,8 @@ impl<S: VoxelSource + Clone> World<S> {
 
     /// A snapshot of the voxels with every edit so far, to hand to meshing
     /// threads: it stays as it is while the world goes on changing (the
-    /// next edit copies the voxels while a snapshot is alive).
+    /// next edit clones the voxels while a snapshot is alive, sharing all
+    /// but what it changes).
     pub fn voxels(&self) -> Arc<EditedSource<S>> {
         self.source.clone()
     }
