@@ -24,7 +24,7 @@ use nebula_demo::hud::Hud;
 
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, Voxel, VoxelHit, VoxelSource};
-use nebula_world::walk::{Body, Walker, is_solid, local_frame, move_body};
+use nebula_world::walk::{Body, Orientation, Walker, is_solid, move_body};
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
 use winit::event::{DeviceEvent, ElementState, MouseButton, WindowEvent};
@@ -494,8 +494,9 @@ struct Windowed {
     shot: Shot,
     state: Option<WindowState>,
     eye: DVec3,
-    yaw: f64,
-    pitch: f64,
+    /// Where the eye looks: a heading carried along as it moves (no north
+    /// to get stuck at over a pole) and a pitch.
+    orientation: Orientation,
     keys: std::collections::HashSet<KeyCode>,
     looking: bool,
     view: DebugView,
@@ -528,8 +529,9 @@ fn windowed(
         options,
         msaa,
         eye: shot.position,
-        yaw: 0.0,
-        pitch: 0.0,
+        // Straight down has no heading: tip it a hair off vertical.
+        orientation: Orientation::looking(shot.position, forward)
+            .or_else(|_| Orientation::looking(shot.position, forward + forward.any_orthonormal_vector() * 1e-3))?,
         shot,
         state: None,
         keys: Default::default(),
@@ -539,33 +541,16 @@ fn windowed(
         frames: 0,
         frame_clock: Instant::now(),
     };
-    demo.set_forward(forward);
     event_loop.run_app(&mut demo)?;
     Ok(())
 }
 
 impl Windowed {
-    /// The view basis at the eye: radial up, yaw around it, pitch above the
-    /// local horizon.
-    fn basis(&self) -> (DVec3, DVec3) {
-        let (north, east, up) = self.local_frame();
-        let heading = north * self.yaw.cos() + east * self.yaw.sin();
-        let forward = heading * self.pitch.cos() + up * self.pitch.sin();
-        (forward, up)
-    }
-
-    /// North, east and up (radial) at the eye; "north" is towards +Z, or
-    /// +X right above a Z pole.
-    fn local_frame(&self) -> (DVec3, DVec3, DVec3) {
-        // The eye never reaches the centre (it stays above the ground).
-        let (east, north, up) = local_frame(self.eye).unwrap_or((DVec3::X, DVec3::Z, DVec3::Y));
-        (north, east, up)
-    }
-
-    fn set_forward(&mut self, forward: DVec3) {
-        let (north, east, up) = self.local_frame();
-        self.pitch = forward.dot(up).clamp(-1.0, 1.0).asin().clamp(-1.55, 1.55);
-        self.yaw = forward.dot(east).atan2(forward.dot(north));
+    /// The view basis at the eye: its forward and radial up, the heading
+    /// carried to where the eye is now.
+    fn basis(&mut self) -> (DVec3, DVec3) {
+        self.orientation.move_to(self.eye);
+        (self.orientation.forward(), self.orientation.up())
     }
 
     /// Digs out (`dig`) the voxel under the crosshair, or places the
@@ -865,8 +850,7 @@ impl ApplicationHandler for Windowed {
         if let DeviceEvent::MouseMotion { delta } = event
             && self.looking
         {
-            self.yaw += delta.0 * 0.003;
-            self.pitch = (self.pitch - delta.1 * 0.003).clamp(-1.55, 1.55);
+            self.orientation.turn(delta.0 * 0.003, -delta.1 * 0.003);
         }
     }
 }

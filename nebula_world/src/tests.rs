@@ -516,6 +516,67 @@ mod walking {
     }
 
     #[test]
+    fn a_long_fall_lands_at_terminal_speed() {
+        // Dropped 3 km over Earth's ground at 10 frames a second: the fall
+        // stays under terminal speed, never moves more than a collision
+        // step allows, and lands on the ground (main refused to move after
+        // 16 s of falling: more than 16 m per step).
+        let planet = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+        let up = DVec3::new(0.4, 0.7, -0.6).normalize();
+        let mut walker = Walker::new(planet.surface_point(up) + up * 3_000.0);
+        let mut seconds = 0.0;
+        while !walker.on_ground {
+            walker.step(&planet, 0.1, DVec3::new(3.0, 0.0, 0.0), None).unwrap();
+            assert!(walker.vertical_speed >= -crate::walk::TERMINAL_SPEED);
+            seconds += 0.1;
+            assert!(seconds < 120.0, "still falling after 2 minutes");
+        }
+        assert!(!is_solid(&planet, walker.body.feet + walker.body.feet.normalize() * 0.05).unwrap());
+        assert!(deepest_overlap(&planet, walker.body) <= 0.02 * planet.voxel_size());
+        println!("a 3 km fall landed after {seconds:.1} s");
+    }
+
+    #[test]
+    fn flying_straight_over_a_pole_goes_on_over_it() {
+        // 200 steps of 0.5 km forward from 30 km before the +Z pole, 1 km
+        // up: the orientation carried along passes the pole and goes on
+        // down the far side. The demo's old heading, measured from north
+        // (+Z), flips at the pole and sends the camera back: the control.
+        use crate::walk::Orientation;
+        let radius = 6_372_000.0;
+        let start = DVec3::new(30_000.0 / radius, 0.0, 1.0).normalize() * radius;
+        let fly = |forward_at: &mut dyn FnMut(DVec3) -> DVec3| {
+            let mut eye = start;
+            let mut farthest_past = f64::NEG_INFINITY;
+            for _ in 0..200 {
+                let forward = forward_at(eye);
+                eye = (eye + forward * 500.0).normalize() * radius;
+                // Metres past the pole along the flight's great circle (-x).
+                farthest_past = farthest_past.max(-eye.x);
+            }
+            farthest_past
+        };
+        let mut orientation = Orientation::looking(start, -DVec3::X).unwrap();
+        let carried = fly(&mut |eye| {
+            orientation.move_to(eye);
+            orientation.forward()
+        });
+        let north = fly(&mut |eye| local_frame(eye).unwrap().1);
+        println!("past the pole: {carried:.0} m carried along, {north:.0} m north-relative");
+        assert!(carried > 60_000.0, "stopped {carried} m past the pole");
+        assert!(north < 1_000.0, "the control went {north} m past the pole: the check cannot tell");
+        // Turning and pitching.
+        let mut o = Orientation::looking(start, -DVec3::X).unwrap();
+        let before = o.forward().dot(o.up()).asin();
+        o.turn(std::f64::consts::FRAC_PI_2, 0.3);
+        assert!((o.forward().dot(o.up()) - (before + 0.3).sin()).abs() < 1e-12);
+        assert!(o.heading().dot(DVec3::Y).abs() > 0.999, "a quarter turn from -x heads along y");
+        o.turn(0.0, 10.0);
+        assert!((o.forward().dot(o.up()) - Orientation::MAX_PITCH.sin()).abs() < 1e-12);
+        assert!(Orientation::looking(start, start).is_err(), "straight up has no heading");
+    }
+
+    #[test]
     fn walls_stop_a_walker_and_random_walks_never_enter_a_block() {
         // A wall of stone built in front of the walker stops it; then random
         // walks and jumps (small planet and Earth, across a cube edge too)

@@ -214,6 +214,99 @@ fn solid_boxes<S: VoxelSource + ?Sized>(
     Ok(boxes)
 }
 
+/// Where a character or a flying camera looks on a sphere: a heading
+/// along the ground and a pitch above the local horizon, with no "north"
+/// to get stuck at. The heading is carried along as the position moves
+/// (rotated by the turn that takes the old up to the new one), so flying
+/// straight over a pole goes on over it; a heading measured from north
+/// flips there and turns the camera back.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Orientation {
+    /// Unit direction along the ground at `up`.
+    heading: DVec3,
+    /// The radial up the heading belongs to.
+    up: DVec3,
+    /// Radians above the horizon, within ±[`Orientation::MAX_PITCH`].
+    pitch: f64,
+}
+
+impl Orientation {
+    /// The steepest pitch up or down, radians (just short of straight up,
+    /// where the heading would be lost).
+    pub const MAX_PITCH: f64 = 1.55;
+
+    /// Looking along `forward` from `position`.
+    ///
+    /// # Errors
+    /// A bad position, or a `forward` that is not finite, zero, or straight
+    /// up or down.
+    pub fn looking(position: DVec3, forward: DVec3) -> Result<Self, VoxelError> {
+        let (_, _, up) = local_frame(position)?;
+        if !forward.is_finite() {
+            return Err(VoxelError::NonFinite { name: "forward", value: forward.length() });
+        }
+        let along = forward - up * forward.dot(up);
+        let heading = along.try_normalize().filter(|_| along.length() > 1e-9 * forward.length()).ok_or(
+            VoxelError::OutOfRange {
+                name: "forward",
+                requirement: "not zero nor straight up or down",
+                value: along.length(),
+            },
+        )?;
+        let pitch = forward.normalize().dot(up).clamp(-1.0, 1.0).asin().clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
+        Ok(Self { heading, up, pitch })
+    }
+
+    /// Turns by `yaw` radians (clockwise seen from above) and tilts by
+    /// `pitch` radians (up positive), the pitch held within
+    /// ±[`Orientation::MAX_PITCH`].
+    pub fn turn(&mut self, yaw: f64, pitch: f64) {
+        if yaw.is_finite() {
+            self.heading = (nebula_math::DQuat::from_axis_angle(self.up, -yaw) * self.heading).normalize();
+        }
+        if pitch.is_finite() {
+            self.pitch = (self.pitch + pitch).clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
+        }
+    }
+
+    /// Carries the heading to `position` (the least rotation taking the old
+    /// up to the new one). A bad position leaves it as it is.
+    pub fn move_to(&mut self, position: DVec3) {
+        let Ok((_, _, up)) = local_frame(position) else { return };
+        let carried = nebula_math::DQuat::from_rotation_arc(self.up, up) * self.heading;
+        if let Some(heading) = (carried - up * carried.dot(up)).try_normalize() {
+            self.heading = heading;
+            self.up = up;
+        }
+    }
+
+    /// The unit view direction.
+    #[must_use]
+    pub fn forward(&self) -> DVec3 {
+        self.heading * self.pitch.cos() + self.up * self.pitch.sin()
+    }
+
+    /// The unit heading along the ground.
+    #[must_use]
+    pub fn heading(&self) -> DVec3 {
+        self.heading
+    }
+
+    /// The radial up the orientation is at.
+    #[must_use]
+    pub fn up(&self) -> DVec3 {
+        self.up
+    }
+}
+
+/// The fastest a [`Walker`] falls, m/s (a skydiver's terminal speed): a
+/// long fall lands instead of outrunning the collision steps.
+pub const TERMINAL_SPEED: f64 = 55.0;
+
+/// The longest move [`Walker::step`] makes in one collision step, metres:
+/// a faster step is split into as many as it needs.
+const WALK_SUBSTEP_M: f64 = 8.0;
+
 /// A walking character: gravity towards the planet centre, standing on
 /// blocks, jumping. Call [`Walker::step`] once a frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -264,11 +357,26 @@ impl Walker {
         if !(0.0..=1.0).contains(&dt) {
             return Err(VoxelError::OutOfRange { name: "dt", requirement: "in [0, 1] s", value: dt });
         }
-        let up = local_frame(self.body.feet)?.2;
+        if !horizontal.is_finite() {
+            return Err(VoxelError::NonFinite { name: "horizontal speed", value: horizontal.length() });
+        }
         if let Some(speed) = jump_speed.filter(|_| self.on_ground) {
             self.vertical_speed = speed;
         }
-        self.vertical_speed -= GRAVITY * dt;
+        // Collision steps of at most WALK_SUBSTEP_M: fast walks and long
+        // falls move as far as they should, never through a block.
+        let fastest = horizontal.length() + self.vertical_speed.abs().max(TERMINAL_SPEED.min(GRAVITY * dt));
+        let parts = (fastest * dt / WALK_SUBSTEP_M).ceil().clamp(1.0, 1_000.0);
+        for _ in 0..parts as usize {
+            self.substep(source, dt / parts, horizontal)?;
+        }
+        Ok(())
+    }
+
+    /// One collision step of [`Walker::step`].
+    fn substep<S: VoxelSource + ?Sized>(&mut self, source: &S, dt: f64, horizontal: DVec3) -> Result<(), VoxelError> {
+        let up = local_frame(self.body.feet)?.2;
+        self.vertical_speed = (self.vertical_speed - GRAVITY * dt).max(-TERMINAL_SPEED);
         let walk = horizontal - up * horizontal.dot(up);
         let mut moved = move_body(source, self.body, walk * dt + up * self.vertical_speed * dt)?;
         if self.on_ground && self.step_up > 0.0 && (moved.blocked[0] || moved.blocked[1]) {
