@@ -238,6 +238,9 @@ impl FlightReport {
     }
 }
 
+/// The most frames a flight may have.
+pub const MAX_FLIGHT_FRAMES: usize = 5_184_000;
+
 /// Flies `flight` at `fps` frames per second with `template`'s size, field
 /// of view, background and debug view; writes `DIR/00000.png`, … when
 /// `frames_dir` is given. With a background every frame's cracks are
@@ -275,7 +278,14 @@ pub fn fly(
     // The sun stays where the first pose places it.
     crate::headless::place_sun(app, &shot_at(0.0))?;
     let first_frame_ms = prime(app)?;
-    let count = (flight.duration() * fps).floor() as usize + 1;
+    // A frame list that fits in memory (a day at 60 fps); a keyframe at
+    // t = 1e20 s is refused, not an overflow.
+    let frames = (flight.duration() * fps).floor();
+    anyhow::ensure!(
+        frames <= MAX_FLIGHT_FRAMES as f64,
+        "the flight is {frames} frames long at {fps} fps; at most {MAX_FLIGHT_FRAMES} are flown"
+    );
+    let count = frames as usize + 1;
     let mut frames = Vec::with_capacity(count);
     let start = Instant::now();
     for k in 0..count {

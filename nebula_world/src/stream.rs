@@ -234,9 +234,10 @@ pub struct MeshCache<H> {
     /// Drawn chunks an edit changed: the old mesh stays on screen until one
     /// of at least this voxel generation replaces it.
     stale: HashMap<ChunkKey, u64>,
-    /// Every chunk an edit changed, with the voxel generation its mesh must
-    /// be made from: a job that read older voxels (it was running when the
-    /// edit came) is thrown away, never cached as current.
+    /// Chunks an edit changed while a job for them was running, with the
+    /// voxel generation their mesh must be made from: that job read older
+    /// voxels and is thrown away when collected, never cached as current
+    /// (held only until then: a job taken after the edit reads its voxels).
     required: HashMap<ChunkKey, u64>,
 }
 
@@ -739,6 +740,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
         self.tree.refresh_bounds(&*self.voxels, columns.iter().copied())?;
+        // The next job a worker takes reads the new voxels; only the jobs
+        // running now read the old ones, so only their meshes need checking
+        // (all under one lock: no job is taken in between).
+        let running: HashSet<ChunkKey> = match self.meshing.state.lock() {
+            Ok(mut state) => {
+                state.voxels = Some((self.voxels.clone(), self.generation));
+                state.running.keys().copied().collect()
+            }
+            Err(_) => HashSet::default(),
+        };
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         for &column in &columns {
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
@@ -753,7 +764,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         for key in dirty {
             let column = key.column();
-            self.cache.required.insert(*key, self.generation);
+            if running.contains(key) {
+                self.cache.required.insert(*key, self.generation);
+            }
             if drawn.contains(&column)
                 && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains_key(&key.layer))
             {
@@ -767,12 +780,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let Some(cached) = self.cache.columns.get(&column) else { continue };
             for &layer in cached.layers.iter().filter(|layer| !cached.chunks.contains_key(layer)) {
                 self.cache.stale.insert(column.chunk(layer), self.generation);
-                self.cache.required.insert(column.chunk(layer), self.generation);
             }
-        }
-        // The next job a worker takes reads the new voxels.
-        if let Ok(mut state) = self.meshing.state.lock() {
-            state.voxels = Some((self.voxels.clone(), self.generation));
         }
         Ok(())
     }
@@ -910,6 +918,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn store(&mut self, done: MeshResult, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
         let key = done.key;
         let column = key.column();
+        if let Some(wanted) = self.cache.required.remove(&key)
+            && done.generation < wanted
+        {
+            // Made from voxels before an edit: asked for again (the next
+            // job reads the new ones).
+            return false;
+        }
         let mesh = match done.result {
             Ok(mesh) => mesh,
             Err(message) => {
@@ -924,13 +939,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
         };
         self.failed.remove(&key);
-        if let Some(&wanted) = self.cache.required.get(&key) {
-            if done.generation < wanted {
-                // Made from voxels before an edit: asked for again.
-                return false;
-            }
-            self.cache.required.remove(&key);
-        }
         let handle = upload(key, &mesh);
         let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
         let loaded =

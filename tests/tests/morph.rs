@@ -12,7 +12,12 @@
 //! where C draws it and where P draws q. The largest over all vertices is
 //! the pop; the goal is ≤ 0.5 px at τ = 1 (640×400 and 1280×720, 60°).
 //!
-//! Controls: with geomorphing off the same measure must show a clear pop,
+//! That is the vertex gap: it checks the μ schedule (children fully
+//! morphed at the switch), but it never looks at the parent's own mesh.
+//! The surface pop does: the children's drawn surface against the parent's
+//! drawn mesh, both ways (a Hausdorff distance in pixels).
+//!
+//! Controls: with geomorphing off the vertex gap must show a clear pop,
 //! so the measure can see one.
 
 use nebula_lod::{LodSettings, NodeBounds};
@@ -22,6 +27,8 @@ use nebula_voxel::{CHUNK_SIZE, ChunkColumn, CubeFace, PlanetSettings, Procedural
 
 struct Case {
     children: Vec<ChunkMesh>,
+    /// The parent's own meshes (what is drawn after a merge).
+    parent_meshes: Vec<ChunkMesh>,
     parent: ChunkColumn,
 }
 
@@ -81,6 +88,177 @@ fn pop_px(planet: &ProceduralPlanet, case: &Case, eye: DVec3, k: f64, morph: boo
     worst
 }
 
+/// Lattice points, in the parent's units (face-global `i`, `h`, `j`), a
+/// surface vertex of `mesh` lies at or next to: a child's are halved.
+fn parent_units(mesh: &ChunkMesh, index: usize, parent_lod: u8) -> Option<[i64; 3]> {
+    let key = mesh.key();
+    let local = mesh.local_lattice(index)?;
+    let size = i64::from(CHUNK_SIZE);
+    let global = [
+        i64::from(key.x) * size + i64::from(local[0]),
+        i64::from(key.layer) * size + i64::from(local[1]),
+        i64::from(key.y) * size + i64::from(local[2]),
+    ];
+    let shift = u32::from(parent_lod - key.lod);
+    Some(global.map(|c| c >> shift))
+}
+
+/// One side of a switch: the triangles of `meshes`, indexed by the parent
+/// lattice points their corners' box covers, so a point is compared with
+/// the triangles near it only.
+struct Surface<'a> {
+    meshes: &'a [ChunkMesh],
+    /// (mesh, first index of the triangle) by parent lattice point.
+    near: std::collections::HashMap<[i64; 3], Vec<(usize, usize)>>,
+}
+
+impl<'a> Surface<'a> {
+    fn new(meshes: &'a [ChunkMesh], parent_lod: u8) -> Self {
+        let mut near: std::collections::HashMap<[i64; 3], Vec<(usize, usize)>> = std::collections::HashMap::new();
+        for (m, mesh) in meshes.iter().enumerate() {
+            for (t, tri) in mesh.indices().chunks_exact(3).enumerate() {
+                let corners: Vec<[i64; 3]> =
+                    tri.iter().filter_map(|&v| parent_units(mesh, v as usize, parent_lod)).collect();
+                let (Some(low), Some(high)) = (
+                    corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].min(b[k]))),
+                    corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].max(b[k]))),
+                ) else {
+                    continue;
+                };
+                for i in low[0]..=high[0] {
+                    for h in low[1]..=high[1] {
+                        for j in low[2]..=high[2] {
+                            near.entry([i, h, j]).or_default().push((m, t * 3));
+                        }
+                    }
+                }
+            }
+        }
+        Self { meshes, near }
+    }
+
+    /// Every triangle whose lattice box comes within `reach` parent
+    /// lattice steps of the box from `low` to `high`.
+    fn candidates(&self, low: [i64; 3], high: [i64; 3], reach: i64) -> Vec<(usize, usize)> {
+        let mut found = Vec::new();
+        for i in low[0] - reach..=high[0] + reach {
+            for h in low[1] - reach..=high[1] + reach {
+                for j in low[2] - reach..=high[2] + reach {
+                    if let Some(list) = self.near.get(&[i, h, j]) {
+                        found.extend_from_slice(list);
+                    }
+                }
+            }
+        }
+        found.sort_unstable();
+        found.dedup();
+        found
+    }
+}
+
+/// The closest point to `p` on triangle `abc` (Ericson, Real-Time
+/// Collision Detection, 5.1.5).
+fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Where a case's two sides are drawn, camera-relative, for one eye.
+fn drawn_positions(meshes: &[ChunkMesh], frame: &FrameDraw, draw: &ChunkDraw) -> Vec<Vec<DVec3>> {
+    meshes.iter().map(|mesh| mesh.render_vertices().iter().map(|v| v.drawn_relative(frame, draw)).collect()).collect()
+}
+
+/// The largest screen distance, in pixels, from a point of one side's
+/// drawn surface (each triangle's corners and centre) to the nearest point
+/// of the other side's, both ways (a Hausdorff distance on screen): how
+/// far anything on screen jumps when the children are replaced by their
+/// parent's own mesh or back. Triangles a morph has collapsed to no area
+/// are not seen and take no part. Each point is compared with the
+/// triangles of the other side whose lattice box comes within two parent
+/// steps of it (a point with none counts as infinitely far).
+fn surface_pop_px(case: &Case, sides: &[Surface<'_>; 2], eye: DVec3, k: f64, morph: bool, errors: [f64; 2]) -> f64 {
+    let frame = FrameDraw::new(eye, k, 1.0, morph);
+    let draws = errors.map(|parent_error| ChunkDraw { parent_error, skirt_depths: [0.0; 4], hidden_sides: 0 });
+    let drawn =
+        [drawn_positions(&case.children, &frame, &draws[0]), drawn_positions(&case.parent_meshes, &frame, &draws[1])];
+    // The smallest child voxel face is (edge)², so a hundredth of it is
+    // far above f32 rounding and far below anything seen.
+    let edge = case.children.first().map_or(1.0, |m| {
+        let key = m.key();
+        let (a, b) = (m.world_position(0), m.world_position(1));
+        let _ = key;
+        a.zip(b).map_or(1.0, |(a, b)| a.distance(b).max(1e-3))
+    });
+    let corners = |side: usize, n: usize, first: usize| -> [DVec3; 3] {
+        let indices = sides[side].meshes[n].indices();
+        [0, 1, 2].map(|i| drawn[side][n][indices[first + i] as usize])
+    };
+    let seen = |[a, b, c]: [DVec3; 3]| (b - a).cross(c - a).length() * 0.5 > 0.01 * edge * edge;
+    let mut worst = 0.0_f64;
+    for (from, to) in [(0, 1), (1, 0)] {
+        for (n, mesh) in sides[from].meshes.iter().enumerate() {
+            for (t, tri) in mesh.indices().chunks_exact(3).enumerate() {
+                let triangle = corners(from, n, t * 3);
+                if !seen(triangle) {
+                    continue;
+                }
+                let lattice: Vec<[i64; 3]> =
+                    tri.iter().filter_map(|&v| parent_units(mesh, v as usize, case.parent.lod)).collect();
+                let (Some(low), Some(high)) = (
+                    lattice.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].min(b[k]))),
+                    lattice.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].max(b[k]))),
+                ) else {
+                    continue;
+                };
+                let others: Vec<[DVec3; 3]> = sides[to]
+                    .candidates(low, high, 2)
+                    .into_iter()
+                    .map(|(m, first)| corners(to, m, first))
+                    .filter(|&other| seen(other))
+                    .collect();
+                let centre = (triangle[0] + triangle[1] + triangle[2]) / 3.0;
+                for point in [triangle[0], triangle[1], triangle[2], centre] {
+                    let nearest = others
+                        .iter()
+                        .map(|&[a, b, c]| closest_on_triangle(point, a, b, c).distance(point))
+                        .fold(f64::INFINITY, f64::min);
+                    // Small-angle screen distance of a move of `nearest`
+                    // metres at this distance from the eye.
+                    worst = worst.max(nearest * k / point.length());
+                }
+            }
+        }
+    }
+    worst
+}
+
 /// An eye at node distance `distance` from `column`'s bounds, above its
 /// centre at `elevation` degrees over the local horizon.
 fn eye_at(planet: &ProceduralPlanet, column: ChunkColumn, distance: f64, elevation: f64, azimuth: f64) -> DVec3 {
@@ -120,44 +298,64 @@ fn cases(planet: &ProceduralPlanet, seed: u64, count: usize) -> Vec<Case> {
                     meshes(planet, ChunkColumn { face, lod: lod - 1, x: parent.x * 2 + dx, y: parent.y * 2 + dy })
                 })
                 .collect();
-            Case { children, parent }
+            Case { children, parent_meshes: meshes(planet, parent), parent }
         })
         .collect()
 }
 
 #[test]
-fn the_pop_at_a_lod_switch_is_within_half_a_pixel() {
+fn the_pop_at_a_lod_switch_is_measured_against_the_parents_own_mesh() {
+    // Two figures per view size: the vertex gap (each child vertex against
+    // the point of the parent lattice it morphs to: the μ schedule, 0 when
+    // children are fully morphed at the switch) and the surface pop (the
+    // children's drawn surface against the parent's own drawn mesh, both
+    // ways). Measured 2026-11-24: the vertex gap is < 0.00001 px, but the
+    // surface pop is 0.96-0.97 px on Earth and 2.3 px on the small planet,
+    // morphed or not: fully morphed children keep zero-thickness "fins"
+    // where a collapsing column stood higher than both its neighbours
+    // (two walls in one lattice plane, facing each other), and the seam
+    // walls on the column's boundary come from other padding. The goal
+    // stays 0.5 px; this bounds what is there so it cannot grow unseen.
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).expect("earth");
     let small = ProceduralPlanet::new(PlanetSettings::small(3)).expect("small");
     let hysteresis = LodSettings::default().hysteresis;
     let mut report = Vec::new();
-    for (name, planet) in [("earth", &earth), ("small", &small)] {
+    for (name, planet, bound) in [("earth", &earth, 1.2), ("small", &small, 2.6)] {
         let cases = cases(planet, 0x9e37, 16);
         for height in [400.0, 720.0] {
             let settings = LodSettings { screen_height_px: height, ..LodSettings::default() };
             let k = settings.screen_space().expect("settings").k();
-            let (mut worst_on, mut worst_off) = (0.0_f64, 0.0_f64);
+            let (mut gap_on, mut gap_off, mut surface_on, mut surface_off) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
             for case in &cases {
-                let split = planet.layout().voxel_edge(case.parent.lod) * k / settings.threshold_px;
+                let layout = planet.layout();
+                let sides =
+                    [Surface::new(&case.children, case.parent.lod), Surface::new(&case.parent_meshes, case.parent.lod)];
+                let errors = [layout.merge_error(case.parent.lod - 1), layout.merge_error(case.parent.lod)];
+                let split = layout.voxel_edge(case.parent.lod) * k / settings.threshold_px;
                 for distance in [split, split / (1.0 - hysteresis)] {
                     for (elevation, azimuth) in [(5.0, 0.0), (25.0, 130.0), (60.0, 250.0)] {
                         let eye = eye_at(planet, case.parent, distance, elevation, azimuth);
-                        worst_on = worst_on.max(pop_px(planet, case, eye, k, true));
-                        worst_off = worst_off.max(pop_px(planet, case, eye, k, false));
+                        gap_on = gap_on.max(pop_px(planet, case, eye, k, true));
+                        gap_off = gap_off.max(pop_px(planet, case, eye, k, false));
+                        surface_on = surface_on.max(surface_pop_px(case, &sides, eye, k, true, errors));
+                        surface_off = surface_off.max(surface_pop_px(case, &sides, eye, k, false, errors));
                     }
                 }
             }
             println!(
-                "{name}, {height} px tall, τ = 1: largest pop {worst_on:.5} px with geomorphing, {worst_off:.3} px without"
+                "{name}, {height} px tall, τ = 1: vertex gap {gap_on:.5} px with geomorphing ({gap_off:.3} without); \
+                 surface pop against the parent's mesh {surface_on:.3} px ({surface_off:.3} without)"
             );
-            report.push((name, height, worst_on, worst_off));
+            report.push((name, height, bound, gap_on, gap_off, surface_on, surface_off));
         }
     }
-    for (name, height, on, off) in report {
-        assert!(on <= 0.5, "{name} at {height} px: pop {on:.3} px > 0.5");
+    for (name, height, bound, gap_on, gap_off, surface_on, surface_off) in report {
+        assert!(gap_on <= 0.5, "{name} at {height} px: vertex gap {gap_on:.3} px > 0.5");
         assert!(
-            off > 0.3 && off > 3.0 * on,
-            "{name} at {height} px: the measure cannot see a pop ({off:.3} px off, {on:.3} on)"
+            gap_off > 0.3 && gap_off > 3.0 * gap_on,
+            "{name} at {height} px: the vertex gap cannot see a pop ({gap_off:.3} px off, {gap_on:.3} on)"
         );
+        assert!(surface_on <= bound, "{name} at {height} px: surface pop {surface_on:.3} px > {bound}");
+        assert!(surface_on.is_finite() && surface_off >= surface_on * 0.9, "{name}: {surface_on} / {surface_off}");
     }
 }

@@ -885,7 +885,13 @@ fn multisampling_smooths_the_shaded_view_and_leaves_crack_checks_alone() {
         for on in [false, true] {
             let mut app = app(&settings, &shot, DrawOptions::default());
             if app.gpu_mut().set_multisampling(on) != on {
-                println!("SKIPPED: this adapter cannot multisample every target");
+                // lavapipe and every GPU we run on can: CI must not pass by
+                // skipping.
+                assert!(
+                    std::env::var("NEBULA_REQUIRE_ADAPTER").as_deref() != Ok("1"),
+                    "NEBULA_REQUIRE_ADAPTER=1 but this adapter cannot multisample every target"
+                );
+                eprintln!("SKIPPED: this adapter cannot multisample every target");
                 return;
             }
             pictures.push(render_app(&mut app, &shot).expect("renders"));
@@ -899,8 +905,10 @@ fn multisampling_smooths_the_shaded_view_and_leaves_crack_checks_alone() {
         if background.is_some() {
             assert_eq!(changed, 0, "multisampling reached a view over a background");
         } else {
-            assert!(changed > pixels / 50, "too few pixels smoothed to tell: {changed}");
-            assert!(mean_shift.abs() < 2.0, "the picture as a whole changed: {mean_shift}");
+            // What the README says: about a quarter of the pixels change
+            // (25.3 % on lavapipe), the mean by less than 0.1 of 255 (0.076).
+            assert!(changed > pixels / 6, "too few pixels smoothed: {changed} of {pixels}");
+            assert!(mean_shift.abs() < 0.2, "the picture as a whole changed: {mean_shift}");
         }
     }
 }
