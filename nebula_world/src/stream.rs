@@ -163,9 +163,6 @@ struct CachedColumn<H> {
     chunks: HashMap<i32, LoadedChunk<H>>,
     /// Frame it was last drawn or wanted in.
     last_used: u64,
-    /// Frame it was last in the prefetch set (0: never): what the tree
-    /// holds out of view, kept for a turn of the camera.
-    kept: u64,
     /// Its outermost wall planes, for [`WallPlanes::back_sides`].
     walls: WallPlanes,
 }
@@ -178,13 +175,7 @@ impl<H: MeshHandle> CachedColumn<H> {
             Some(layers) => layers.collect(),
             None => voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default(),
         };
-        Self {
-            layers,
-            chunks: HashMap::default(),
-            last_used: frame,
-            kept: 0,
-            walls: WallPlanes::of(voxels.layout(), column),
-        }
+        Self { layers, chunks: HashMap::default(), last_used: frame, walls: WallPlanes::of(voxels.layout(), column) }
     }
 
     /// Every layer meshed, or awaited after an edit that added it to a
@@ -192,12 +183,6 @@ impl<H: MeshHandle> CachedColumn<H> {
     /// until it comes, as an edited chunk's old mesh does.
     fn ready(&self, column: ChunkColumn, stale: &HashMap<ChunkKey, u64>) -> bool {
         self.layers.iter().all(|&layer| self.chunks.contains_key(&layer) || stale.contains_key(&column.chunk(layer)))
-    }
-
-    /// In the prefetch set recently (it is refreshed every
-    /// [`PREFETCH_REFRESH_FRAMES`]).
-    fn kept_at(&self, frame: u64) -> bool {
-        self.kept > 0 && frame.saturating_sub(self.kept) <= 2 * PREFETCH_REFRESH_FRAMES
     }
 
     fn bytes(&self) -> u64 {
@@ -257,9 +242,10 @@ impl<H: MeshHandle> MeshCache<H> {
         self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains_key(&key.layer))
     }
 
-    /// Room for prefetching: under three quarters of both budgets.
-    fn room_to_prefetch(&self) -> bool {
-        self.chunks() < self.max_chunks / 4 * 3 && self.held_bytes() < self.max_bytes / 4 * 3
+    /// Room for prefetching, given what is held (chunks, bytes): under
+    /// three quarters of both budgets.
+    fn room_to_prefetch(&self, (chunks, bytes): (usize, u64)) -> bool {
+        chunks < self.max_chunks / 4 * 3 && bytes < self.max_bytes / 4 * 3
     }
 
     /// Bytes the renderer holds for the meshes.
@@ -417,10 +403,15 @@ pub struct OpaqueSea {
 /// forgets them all (about 10 MB).
 const MAX_SEA_BED_MEMO: usize = 200_000;
 
-/// The prefetch set ([`MeshCache::prefetch`]) is worked out again every
-/// this many frames (a walk over every leaf of the tree), and sooner when
-/// the tree changes.
+/// The prefetch set ([`MeshCache::prefetch`]) is worked out again (a walk
+/// over every leaf of the tree, 10–20 ms on an Earth view) at most every
+/// this many frames when the tree has changed, and every
+/// [`PREFETCH_MAX_AGE_FRAMES`] otherwise: a still camera pays nothing.
 pub const PREFETCH_REFRESH_FRAMES: u64 = 8;
+
+/// The longest the prefetch set goes unrefreshed (what the horizon and
+/// the sea hide moves with the eye even where the tree does not change).
+pub const PREFETCH_MAX_AGE_FRAMES: u64 = 240;
 
 /// What the next frame draws.
 #[derive(Default, Clone)]
@@ -544,6 +535,10 @@ pub struct Streamer<S, H> {
     /// since.
     prefetched_at: u64,
     tree_changed: bool,
+    /// What the last prefetch refresh keeps: freed last, never for age.
+    keep: HashSet<ChunkColumn>,
+    /// Chunks and bytes held at the end of the last update.
+    held: (usize, u64),
     /// Chunks whose meshing failed and when to try them again.
     failed: HashMap<ChunkKey, Failure>,
     /// First failures not taken by the game yet.
@@ -613,6 +608,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             prefetch: Vec::new(),
             prefetched_at: 0,
             tree_changed: true,
+            keep: HashSet::default(),
+            held: (0, 0),
             failed: HashMap::default(),
             failures: Vec::new(),
         };
@@ -739,7 +736,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.under_sea.clear();
         self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
-        self.tree.refresh_bounds(&*self.voxels, columns.iter().copied())?;
         // The next job a worker takes reads the new voxels; only the jobs
         // running now read the old ones, so only their meshes need checking
         // (all under one lock: no job is taken in between).
@@ -750,6 +746,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             Err(_) => HashSet::default(),
         };
+        // A source that refuses a column leaves the tree's bounds old, never
+        // the meshes: the error is returned once the rest is done.
+        let refreshed = self.tree.refresh_bounds(&*self.voxels, columns.iter().copied());
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         for &column in &columns {
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
@@ -782,6 +781,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 self.cache.stale.insert(column.chunk(layer), self.generation);
             }
         }
+        refreshed?;
         Ok(())
     }
 
@@ -806,7 +806,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn prefetched(&self) -> bool {
         self.meshing.pending() == self.meshing.view_pending()
-            && (self.prefetch.is_empty() || !self.cache.room_to_prefetch())
+            && (self.prefetch.is_empty() || !self.cache.room_to_prefetch(self.held))
     }
 
     /// Meshing jobs queued or running (the view's and prefetching).
@@ -1110,9 +1110,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // Out of view: every leaf the tree holds (as it would be drawn) and
         // its stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's
         // work and kept, so a turn of the camera finds them meshed.
+        let age = frame.saturating_sub(self.prefetched_at);
         let refresh = cache.prefetch
-            && (frame.saturating_sub(self.prefetched_at) >= PREFETCH_REFRESH_FRAMES
-                || (self.tree_changed && frame > self.prefetched_at));
+            && (self.prefetched_at == 0
+                || (self.tree_changed && age >= PREFETCH_REFRESH_FRAMES)
+                || age >= PREFETCH_MAX_AGE_FRAMES);
         if refresh {
             self.prefetched_at = frame;
             self.tree_changed = false;
@@ -1132,12 +1134,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             let k = tree.screen_space().k();
             self.prefetch.clear();
-            for column in keep {
-                let layers = match cache.columns.get_mut(&column) {
-                    Some(cached) => {
-                        cached.kept = frame;
-                        cached.layers.clone()
-                    }
+            for &column in &keep {
+                let layers = match cache.columns.get(&column) {
+                    Some(cached) => cached.layers.clone(),
                     None => tree.node_layers(column).map(Iterator::collect).unwrap_or_default(),
                 };
                 let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
@@ -1150,8 +1149,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         .map(|key| Job { tier: Tier::Prefetch, priority, key }),
                 );
             }
+            self.keep = keep;
         } else if !cache.prefetch {
             self.prefetch.clear();
+            self.keep.clear();
         }
         // A drawn ancestor covers everything under it.
         let covered = |column: ChunkColumn| {
@@ -1239,7 +1240,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // Prefetching only while there is room for it: what the view needs
         // is never evicted for it.
         self.prefetch.retain(|job| !cache.holds(job.key));
-        if cache.room_to_prefetch() {
+        if cache.room_to_prefetch(self.held) {
             jobs.extend(self.prefetch.iter().copied());
         }
         // A chunk that failed waits for its retry; one no longer asked for
@@ -1324,13 +1325,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let max_lod = self.tree.max_lod();
         let frame = self.frame;
         let cache = &mut self.cache;
+        let keep = &self.keep;
         if frame.is_multiple_of(10) {
             let limit = cache.free_after_frames;
             cache.columns.retain(|column, cached| {
-                column.lod == max_lod || frame.saturating_sub(cached.last_used) <= limit || cached.kept_at(frame)
+                column.lod == max_lod || frame.saturating_sub(cached.last_used) <= limit || keep.contains(column)
             });
         }
         let (mut chunks, mut bytes) = (cache.chunks(), cache.held_bytes());
+        self.held = (chunks, bytes);
         let over = |chunks: usize, bytes: u64| chunks > cache.max_chunks || bytes > cache.max_bytes;
         if !over(chunks, bytes) {
             return;
@@ -1341,7 +1344,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             .columns
             .iter()
             .filter(|(column, cached)| column.lod != max_lod && cached.last_used < frame)
-            .map(|(column, cached)| (cached.kept_at(frame), cached.last_used, *column))
+            .map(|(column, cached)| (keep.contains(column), cached.last_used, *column))
             .collect();
         old.sort_unstable();
         let mut freed = Vec::new();
@@ -1358,6 +1361,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         for column in freed {
             cache.columns.remove(&column);
         }
+        self.held = (chunks, bytes);
     }
 }
 
