@@ -1049,4 +1049,30 @@ mod streaming {
             failures.len()
         );
     }
+
+    #[cfg(feature = "bevy")]
+    #[test]
+    fn the_ecs_system_applies_a_changed_view() {
+        use crate::ecs::{PlanetStream, StreamView, insert_planet, stream_system};
+        use bevy_ecs::prelude::{Schedule, World};
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+        let up = DVec3::Y;
+        let camera = Camera { position: planet.surface_point(up) + up * 50.0, forward: DVec3::X - up, up, aspect: 1.6 };
+        let lod = LodSettings { screen_height_px: 400.0, ..LodSettings::default() };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let streamer = Streamer::new(planet, lod, camera, 1, &mut { upload }).unwrap();
+        let mut world = World::new();
+        insert_planet(&mut world, streamer, camera, upload);
+        let mut schedule = Schedule::default();
+        schedule.add_systems(stream_system::<ProceduralPlanet, Sized>);
+        schedule.run(&mut world);
+        let fov =
+            |world: &World| world.resource::<PlanetStream<ProceduralPlanet, Sized>>().0.tree().settings().fov_y_degrees;
+        assert_eq!(fov(&world), 60.0);
+        world.insert_resource(StreamView { threshold_px: 1.0, screen_height_px: 800.0, fov_y_degrees: 20.0 });
+        schedule.run(&mut world);
+        assert_eq!(fov(&world), 20.0, "a zoom did not reach the LOD tree");
+        let settings = *world.resource::<PlanetStream<ProceduralPlanet, Sized>>().0.tree().settings();
+        assert_eq!(settings.screen_height_px, 800.0);
+    }
 }
