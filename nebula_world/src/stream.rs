@@ -541,6 +541,10 @@ pub struct Streamer<S, H> {
     held: (usize, u64),
     /// Chunks whose meshing failed and when to try them again.
     failed: HashMap<ChunkKey, Failure>,
+    /// LOD updates that failed (the first is reported).
+    lod_failures: usize,
+    /// Whether the last LOD update went through.
+    lod_ok: bool,
     /// First failures not taken by the game yet.
     failures: Vec<MeshFailure>,
 }
@@ -611,6 +615,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             keep: HashSet::default(),
             held: (0, 0),
             failed: HashMap::default(),
+            lod_failures: 0,
+            lod_ok: false,
             failures: Vec::new(),
         };
         streamer.mesh_roots(upload)?;
@@ -697,27 +703,59 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.eye = camera;
         let start = Instant::now();
         // The leaves in view depend on the camera and the tree alone: a
-        // still camera over a settled tree need not walk it again.
-        let culled = self.tree.update(&*self.voxels, &camera).and_then(|changes| {
-            let same_tree =
-                changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty();
-            self.tree_changed |= !same_tree;
-            if !(same_tree && self.culled_for == Some(camera)) {
-                self.culled_for = None;
-                self.tree.cull(&camera)?;
-                self.culled_for = Some(camera);
-            }
-            Ok(())
-        });
-        if let Err(error) = culled {
-            // A failed update may have changed the tree part-way.
+        // still camera over a settled tree need not walk it again. A panic
+        // in the voxel source's bounds (a game's own) fails the update, not
+        // the game.
+        let culled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            self.tree.update(&*self.voxels, &camera).and_then(|changes| {
+                let same_tree =
+                    changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty();
+                self.tree_changed |= !same_tree;
+                if !(same_tree && self.culled_for == Some(camera)) {
+                    self.culled_for = None;
+                    self.tree.cull(&camera)?;
+                    self.culled_for = Some(camera);
+                }
+                Ok(())
+            })
+        }))
+        .map(|result| {
+            // A bad camera is refused before the tree changes; a source
+            // that fails may have stopped the update part-way.
+            result.map_err(|error| {
+                let damaged = !matches!(error, LodError::BadCamera { .. } | LodError::CameraInsidePlanet { .. });
+                (error.to_string(), damaged)
+            })
+        })
+        .unwrap_or_else(|panic| Err((format!("the voxel source panicked: {}", panic_text(&*panic)), true)));
+        self.lod_ok = culled.is_ok();
+        if let Err((error, damaged)) = culled {
             self.culled_for = None;
-            eprintln!("nebula: LOD update failed, keeping the last selection: {error}");
+            self.lod_failures += 1;
+            if self.lod_failures == 1 {
+                eprintln!("nebula: LOD update failed, keeping the last selection (reported once): {error}");
+            }
+            if damaged {
+                // Start the tree again from its roots: the next updates
+                // refine it anew; the meshes held stay.
+                let settings = *self.tree.settings();
+                let voxels = &*self.voxels;
+                if let Ok(Ok(tree)) =
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| LodTree::new(voxels, settings)))
+                {
+                    self.tree = tree;
+                    self.tree_changed = true;
+                }
+            }
         }
         self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
         self.collect(upload);
-        self.select();
-        self.free();
+        if self.lod_ok {
+            self.select();
+            self.free();
+        }
+        // Else the last frame's selection is drawn again (nothing it draws
+        // was freed), never an empty one.
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty
@@ -795,7 +833,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// no job queued or running and nothing drawn from before an edit.
     #[must_use]
     pub fn settled(&self) -> bool {
-        self.draw.stand_ins == 0
+        self.lod_ok
+            && self.draw.stand_ins == 0
             && self.draw.holes == 0
             && self.meshing.view_pending() == 0
             && self.cache.stale.is_empty()
@@ -960,6 +999,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// are [`Streamer::failing_chunks`].
     pub fn take_mesh_failures(&mut self) -> Vec<MeshFailure> {
         std::mem::take(&mut self.failures)
+    }
+
+    /// LOD updates that failed since the start (a bad camera, or the voxel
+    /// source's bounds failing or panicking; the tree is then started
+    /// again from its roots), the first reported on stderr.
+    #[must_use]
+    pub fn lod_failures(&self) -> usize {
+        self.lod_failures
     }
 
     /// Chunks still asked for whose last meshing attempt failed (retried

@@ -945,6 +945,9 @@ mod streaming {
         panics: AtomicUsize,
         /// Panic at the face roots too.
         at_roots: bool,
+        /// Panics left in `surface_bounds` (what the LOD tree asks on the
+        /// frame thread), for columns with an even `x` below the roots.
+        bounds_panics: AtomicUsize,
     }
 
     impl VoxelSource for Flaky {
@@ -973,6 +976,12 @@ mod streaming {
             &self,
             column: nebula_voxel::ChunkColumn,
         ) -> Result<nebula_voxel::SurfaceBounds, nebula_voxel::VoxelError> {
+            if column.lod < self.planet.layout().max_lod()
+                && column.x.is_multiple_of(2)
+                && self.bounds_panics.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1)).is_ok()
+            {
+                panic!("a bug in the game's surface bounds");
+            }
             self.planet.surface_bounds(column)
         }
         fn geometric_error(&self, lod: u8) -> f64 {
@@ -1013,17 +1022,31 @@ mod streaming {
         // A panic meshing a face root (before the first frame) is an error
         // of Streamer::new, not a panic in the game.
         let refused = Streamer::new(
-            Arc::new(Flaky { planet: planet(), panics: AtomicUsize::new(0), at_roots: true }),
+            Arc::new(Flaky {
+                planet: planet(),
+                panics: AtomicUsize::new(0),
+                at_roots: true,
+                bounds_panics: AtomicUsize::new(0),
+            }),
             lod,
             camera,
             2,
             &mut { upload },
         );
         assert!(matches!(&refused, Err(crate::stream::StreamError::Panicked { .. })), "{:?}", refused.err());
-        let flaky = Arc::new(Flaky { planet: planet(), panics: AtomicUsize::new(40), at_roots: false });
+        // Panics in the bounds the LOD tree asks for on the frame thread too:
+        // the update fails, the tree starts again from its roots.
+        let flaky = Arc::new(Flaky {
+            planet: planet(),
+            panics: AtomicUsize::new(40),
+            at_roots: false,
+            bounds_panics: AtomicUsize::new(3),
+        });
         let mut streamer = Streamer::new(flaky.clone(), lod, camera, 2, &mut { upload }).unwrap();
         let triangles = settle(&mut streamer, camera);
         assert_eq!(flaky.panics.load(Ordering::SeqCst), 0, "the source never panicked: the check cannot tell");
+        assert_eq!(flaky.bounds_panics.load(Ordering::SeqCst), 0, "the bounds never panicked");
+        assert_eq!(streamer.lod_failures(), 3);
         let failures = streamer.take_mesh_failures();
         assert!(
             !failures.is_empty() && failures.iter().all(|f| f.message.contains("a bug in the game's voxel source"))
