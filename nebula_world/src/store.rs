@@ -166,14 +166,7 @@ impl WorldStore {
         // the integrity check on): such a file is refused like any other
         // corrupted one.
         std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Self::open_checked(path, terrain))).unwrap_or_else(
-            |panic| {
-                let reason = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| (*s).to_owned())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "the database reader gave up".into());
-                Err(WorldError::Corrupted { path: path.into(), reason })
-            },
+            |panic| Err(WorldError::Corrupted { path: path.into(), reason: crate::panic_text(&*panic) }),
         )
     }
 

@@ -75,6 +75,8 @@ use nebula_meshing::{
 };
 use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, VoxelSource};
 
+use crate::panic_text;
+
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
 /// mesh (the streamer drops the handles of the meshes it frees).
 pub trait MeshHandle: Send + Sync + 'static {
@@ -1410,15 +1412,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         self.held = (chunks, bytes);
     }
-}
-
-/// The message of a caught panic.
-fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
-    panic
-        .downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(no message)".into())
 }
 
 /// Why a visible leaf is drawn as a coarser ancestor of its own.
