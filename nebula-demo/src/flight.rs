@@ -218,6 +218,7 @@ impl FlightReport {
                     "jobs_in_flight": f.figures.frame.jobs_in_flight,
                     "prefetch_jobs": f.figures.frame.prefetch_jobs,
                     "step_ms": f.step_ms,
+                    "upload_bytes": f.figures.frame.times.upload_bytes,
                     "draw_ms": f.figures.draw_ms,
                     "check_ms": f.figures.check_ms,
                 })

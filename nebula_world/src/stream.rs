@@ -218,6 +218,10 @@ pub struct MeshCache<H> {
     /// not bound memory (measured: flying 15–150 m over Earth at 600–3,000
     /// m/s with CPU copies, the cache stays at ≤ 537 MB).
     pub max_bytes: u64,
+    /// Mesh bytes uploaded per frame at most (default 16 MiB; at least one
+    /// mesh a frame): a burst of finished jobs is spread over frames
+    /// instead of one long upload.
+    pub max_upload_bytes: u64,
     /// Drawn chunks an edit changed: the old mesh stays on screen until one
     /// of at least this voxel generation replaces it.
     stale: HashMap<ChunkKey, u64>,
@@ -460,6 +464,9 @@ pub struct StageTimes {
     pub mesh_errors: usize,
     /// Uploads of finished meshes this frame.
     pub upload_ms: f64,
+    /// Bytes of the meshes uploaded this frame (at most
+    /// [`MeshCache::max_upload_bytes`], or one mesh).
+    pub upload_bytes: u64,
     /// Recording and submitting the draw (the renderer fills it in).
     pub render_ms: f64,
 }
@@ -547,6 +554,8 @@ pub struct Streamer<S, H> {
     lod_failures: usize,
     /// Whether the last LOD update went through.
     lod_ok: bool,
+    /// Finished meshes collected from the workers, not uploaded yet.
+    finished: std::collections::VecDeque<MeshResult>,
     /// First failures not taken by the game yet.
     failures: Vec<MeshFailure>,
 }
@@ -600,6 +609,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 free_after_frames: 300,
                 max_chunks: 100_000,
                 max_bytes: MeshCache::<H>::default_max_bytes(),
+                max_upload_bytes: 16 << 20,
                 stale: HashMap::default(),
                 required: HashMap::default(),
             },
@@ -619,6 +629,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             failed: HashMap::default(),
             lod_failures: 0,
             lod_ok: false,
+            finished: std::collections::VecDeque::new(),
             failures: Vec::new(),
         };
         streamer.mesh_roots(upload)?;
@@ -1021,12 +1032,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// Picks up finished meshes and uploads them.
     fn collect(&mut self, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         let start = Instant::now();
-        let results: Vec<MeshResult> = self
-            .meshing
-            .receiver
-            .lock()
-            .map(|r| r.try_iter().take(MAX_UPLOADS_PER_FRAME).collect())
-            .unwrap_or_default();
+        // Finished meshes wait here (at most MAX_UPLOADS_PER_FRAME, so the
+        // workers block behind a full channel rather than pile meshes up)
+        // and go up at most max_upload_bytes a frame, largest priority
+        // first as they came.
+        if let Ok(receiver) = self.meshing.receiver.lock() {
+            let room = MAX_UPLOADS_PER_FRAME.saturating_sub(self.finished.len());
+            self.finished.extend(receiver.try_iter().take(room));
+        }
+        let mut results = Vec::new();
+        let mut bytes = 0u64;
+        while let Some(done) = self.finished.front() {
+            let size = done.result.as_ref().map_or(0, RenderMesh::bytes);
+            if !results.is_empty() && bytes + size > self.cache.max_upload_bytes {
+                break;
+            }
+            bytes += size;
+            results.extend(self.finished.pop_front());
+        }
+        self.times.upload_bytes = bytes;
         if let Ok(mut state) = self.meshing.state.lock() {
             for done in &results {
                 state.running.remove(&done.key);

@@ -1098,4 +1098,43 @@ mod streaming {
         let settings = *world.resource::<PlanetStream<ProceduralPlanet, Sized>>().0.tree().settings();
         assert_eq!(settings.screen_height_px, 800.0);
     }
+
+    #[test]
+    fn uploads_per_frame_stay_within_their_byte_budget() {
+        // 256 KiB a frame: a cold start on the small planet (megabytes of
+        // meshes finishing at once) is spread over frames, each within the
+        // budget or a single mesh, and the view still settles.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+        let up = DVec3::new(0.5, 0.5, 0.7).normalize();
+        let position = planet.surface_point(up) + up * 40.0;
+        let camera = Camera { position, forward: up.any_orthonormal_vector() - up * 0.2, up, aspect: 1.6 };
+        let lod = LodSettings { screen_height_px: 400.0, ..LodSettings::default() };
+        let frame = std::sync::Mutex::new((0u64, 0u64));
+        let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| {
+            let mut f = frame.lock().unwrap();
+            f.0 += mesh.bytes();
+            f.1 = f.1.max(mesh.bytes());
+            Sized(mesh.bytes())
+        };
+        let mut streamer = Streamer::new(planet, lod, camera, 2, &mut upload).unwrap();
+        let budget = 256 << 10;
+        streamer.cache.max_upload_bytes = budget;
+        let (mut fullest, mut frames) = (0, 0);
+        *frame.lock().unwrap() = (0, 0);
+        loop {
+            streamer.update(camera, &mut upload);
+            let (bytes, largest) = std::mem::take(&mut *frame.lock().unwrap());
+            assert_eq!(bytes, streamer.figures().times.upload_bytes);
+            assert!(bytes <= budget.max(largest), "frame {frames}: {bytes} bytes uploaded, budget {budget}");
+            fullest = fullest.max(bytes);
+            if streamer.settled() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            frames += 1;
+            assert!(frames < 20_000, "did not settle");
+        }
+        assert!(fullest > budget / 2, "the budget was never approached ({fullest} bytes): the check cannot tell");
+        println!("uploads: at most {fullest} bytes a frame of {budget}, settled after {frames} frames");
+    }
 }
