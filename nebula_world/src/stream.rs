@@ -554,6 +554,9 @@ pub struct Streamer<S, H> {
     lod_failures: usize,
     /// Whether the last LOD update went through.
     lod_ok: bool,
+    /// Whether the last selection asked for meshes of the view: prefetching
+    /// waits until it does not.
+    view_busy: bool,
     /// Finished meshes collected from the workers, not uploaded yet.
     finished: std::collections::VecDeque<MeshResult>,
     /// First failures not taken by the game yet.
@@ -629,6 +632,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             failed: HashMap::default(),
             lod_failures: 0,
             lod_ok: false,
+            view_busy: true,
             finished: std::collections::VecDeque::new(),
             failures: Vec::new(),
         };
@@ -1184,7 +1188,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // its stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's
         // work and kept, so a turn of the camera finds them meshed.
         let age = frame.saturating_sub(self.prefetched_at);
+        // Not while the view has work of its own: a cold start or a fast
+        // flight spends the frame thread and the workers on what is seen.
         let refresh = cache.prefetch
+            && !self.view_busy
             && (self.prefetched_at == 0
                 || (self.tree_changed && age >= PREFETCH_REFRESH_FRAMES)
                 || age >= PREFETCH_MAX_AGE_FRAMES);
@@ -1312,9 +1319,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         // Prefetching only while there is room for it: what the view needs
         // is never evicted for it.
-        self.prefetch.retain(|job| !cache.holds(job.key));
-        if cache.room_to_prefetch(self.held) {
-            jobs.extend(self.prefetch.iter().copied());
+        // (A chunk waiting to retry a failure does not hold prefetching up.)
+        let failed = &self.failed;
+        self.view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+        if !self.view_busy {
+            self.prefetch.retain(|job| !cache.holds(job.key));
+            if cache.room_to_prefetch(self.held) {
+                jobs.extend(self.prefetch.iter().copied());
+            }
         }
         // A chunk that failed waits for its retry; one no longer asked for
         // is forgotten.
