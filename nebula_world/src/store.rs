@@ -178,23 +178,22 @@ impl WorldStore {
             store.write_identity(terrain)?;
             return Ok((store, Vec::new()));
         }
-        let checked = Builder::new().set_check_integrity_on_open(true).open_read_only(path);
-        let read = match checked {
-            Ok(read_only) => Some(read_all(&read_only, path, terrain)?),
+        // The read-only pass refuses a corrupted or foreign file before
+        // anything could write to it.
+        match Builder::new().set_check_integrity_on_open(true).open_read_only(path) {
+            Ok(read_only) => {
+                read_all(&read_only, path, terrain)?;
+            }
             // Left by a killed writer: redb rolls it back to its last commit
             // when opened for writing; the checks below run on the result.
-            Err(DatabaseError::RepairAborted) => None,
+            Err(DatabaseError::RepairAborted) => {}
             Err(e) => return Err(classify(path, e)),
-        };
+        }
         let db = Builder::new().set_check_integrity_on_open(true).open(path).map_err(|e| classify(path, e))?;
-        let store = Self::with_db(db, path);
         // Read again on the handle we keep: a writer that committed between
         // the check and this open is not missed.
-        let (format, edits) = match (read, store.db.as_ref()) {
-            (_, Some(db)) => read_all(db, path, terrain)?,
-            (Some(read), None) => read,
-            (None, None) => unreachable!("with_db keeps the handle"),
-        };
+        let (format, edits) = read_all(&db, path, terrain)?;
+        let store = Self::with_db(db, path);
         if format != FORMAT_VERSION {
             store.write_identity(terrain)?;
         }

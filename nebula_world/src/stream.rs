@@ -539,7 +539,7 @@ pub struct Streamer<S, H> {
     /// the tree has not changed since.
     culled_for: Option<Camera>,
     /// Prefetch jobs not done yet, from the last prefetch refresh.
-    prefetch: Vec<Job>,
+    prefetch_jobs: Vec<Job>,
     /// Frame of the last prefetch refresh, and whether the tree changed
     /// since.
     prefetched_at: u64,
@@ -624,7 +624,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             sea: None,
             under_sea: HashMap::default(),
             culled_for: None,
-            prefetch: Vec::new(),
+            prefetch_jobs: Vec::new(),
             prefetched_at: 0,
             tree_changed: true,
             keep: HashSet::default(),
@@ -862,7 +862,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn prefetched(&self) -> bool {
         self.meshing.pending() == self.meshing.view_pending()
-            && (self.prefetch.is_empty() || !self.cache.room_to_prefetch(self.held))
+            && (self.prefetch_jobs.is_empty() || !self.cache.room_to_prefetch(self.held))
     }
 
     /// Meshing jobs queued or running (the view's and prefetching).
@@ -1087,6 +1087,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let mut drawn: Vec<ChunkColumn> = Vec::new();
         let mut ancestors: HashSet<ChunkColumn> = HashSet::default();
         let mut wanted: Vec<ChunkColumn> = Vec::new();
+        // A job's priority: its column's projected voxel edge (largest
+        // first: coarse-first and nearest-first), the same for both tiers.
+        let k = tree.screen_space().k();
+        let priority = |column: ChunkColumn| {
+            let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
+            layout.voxel_edge(column.lod) * k / distance
+        };
         let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
         // Leaves behind the terrain's horizon are drawn as their coarsest
         // ancestor that is hidden too: a few coarse chunks where the
@@ -1212,16 +1219,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     keep.insert(up);
                 }
             }
-            let k = tree.screen_space().k();
-            self.prefetch.clear();
+            self.prefetch_jobs.clear();
             for &column in &keep {
                 let layers = match cache.columns.get(&column) {
                     Some(cached) => cached.layers.clone(),
                     None => tree.node_layers(column).map(Iterator::collect).unwrap_or_default(),
                 };
-                let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
-                let priority = layout.voxel_edge(column.lod) * k / distance;
-                self.prefetch.extend(
+                let priority = priority(column);
+                self.prefetch_jobs.extend(
                     layers
                         .into_iter()
                         .map(|layer| column.chunk(layer))
@@ -1231,7 +1236,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             self.keep = keep;
         } else if !cache.prefetch {
-            self.prefetch.clear();
+            self.prefetch_jobs.clear();
             self.keep.clear();
         }
         // A drawn ancestor covers everything under it.
@@ -1288,15 +1293,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
         // Jobs: every chunk of a wanted column not meshed and not running,
         // the largest projected voxel first.
-        let k = tree.screen_space().k();
         let mut jobs = Vec::new();
         let mut seen = HashSet::default();
         for column in wanted {
             if !seen.insert(column) {
                 continue;
             }
-            let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
-            let priority = layout.voxel_edge(column.lod) * k / distance;
+            let priority = priority(column);
             let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, tree, column, frame));
             entry.last_used = frame;
             for &layer in &entry.layers {
@@ -1323,9 +1326,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let failed = &self.failed;
         self.view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
         if !self.view_busy {
-            self.prefetch.retain(|job| !cache.holds(job.key));
+            self.prefetch_jobs.retain(|job| !cache.holds(job.key));
             if cache.room_to_prefetch(self.held) {
-                jobs.extend(self.prefetch.iter().copied());
+                jobs.extend(self.prefetch_jobs.iter().copied());
             }
         }
         // A chunk that failed waits for its retry; one no longer asked for

@@ -365,7 +365,9 @@ impl Walker {
         }
         // Collision steps of at most WALK_SUBSTEP_M: fast walks and long
         // falls move as far as they should, never through a block.
-        let fastest = horizontal.length() + self.vertical_speed.abs().max(TERMINAL_SPEED.min(GRAVITY * dt));
+        // The fastest the body can move this step: walking plus falling,
+        // gravity included.
+        let fastest = horizontal.length() + self.vertical_speed.abs() + GRAVITY * dt;
         let parts = (fastest * dt / WALK_SUBSTEP_M).ceil().clamp(1.0, 1_000.0);
         for _ in 0..parts as usize {
             self.substep(source, dt / parts, horizontal)?;

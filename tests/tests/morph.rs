@@ -29,6 +29,8 @@ struct Case {
     children: Vec<ChunkMesh>,
     /// The parent's own meshes (what is drawn after a merge).
     parent_meshes: Vec<ChunkMesh>,
+    /// The children's voxel edge, metres.
+    child_voxel_edge: f64,
     parent: ChunkColumn,
 }
 
@@ -103,6 +105,15 @@ fn parent_units(mesh: &ChunkMesh, index: usize, parent_lod: u8) -> Option<[i64; 
     Some(global.map(|c| c >> shift))
 }
 
+/// The box, in parent lattice units, of a triangle's corners (`None` for
+/// one without lattice corners).
+fn lattice_box(mesh: &ChunkMesh, triangle: &[u32], parent_lod: u8) -> Option<([i64; 3], [i64; 3])> {
+    let corners: Vec<[i64; 3]> = triangle.iter().filter_map(|&v| parent_units(mesh, v as usize, parent_lod)).collect();
+    let low = corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].min(b[k])))?;
+    let high = corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].max(b[k])))?;
+    Some((low, high))
+}
+
 /// One side of a switch: the triangles of `meshes`, indexed by the parent
 /// lattice points their corners' box covers, so a point is compared with
 /// the triangles near it only.
@@ -117,14 +128,7 @@ impl<'a> Surface<'a> {
         let mut near: std::collections::HashMap<[i64; 3], Vec<(usize, usize)>> = std::collections::HashMap::new();
         for (m, mesh) in meshes.iter().enumerate() {
             for (t, tri) in mesh.indices().chunks_exact(3).enumerate() {
-                let corners: Vec<[i64; 3]> =
-                    tri.iter().filter_map(|&v| parent_units(mesh, v as usize, parent_lod)).collect();
-                let (Some(low), Some(high)) = (
-                    corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].min(b[k]))),
-                    corners.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].max(b[k]))),
-                ) else {
-                    continue;
-                };
+                let Some((low, high)) = lattice_box(mesh, tri, parent_lod) else { continue };
                 for i in low[0]..=high[0] {
                     for h in low[1]..=high[1] {
                         for j in low[2]..=high[2] {
@@ -210,12 +214,7 @@ fn surface_pop_px(case: &Case, sides: &[Surface<'_>; 2], eye: DVec3, k: f64, mor
         [drawn_positions(&case.children, &frame, &draws[0]), drawn_positions(&case.parent_meshes, &frame, &draws[1])];
     // The smallest child voxel face is (edge)², so a hundredth of it is
     // far above f32 rounding and far below anything seen.
-    let edge = case.children.first().map_or(1.0, |m| {
-        let key = m.key();
-        let (a, b) = (m.world_position(0), m.world_position(1));
-        let _ = key;
-        a.zip(b).map_or(1.0, |(a, b)| a.distance(b).max(1e-3))
-    });
+    let edge = case.child_voxel_edge;
     let corners = |side: usize, n: usize, first: usize| -> [DVec3; 3] {
         let indices = sides[side].meshes[n].indices();
         [0, 1, 2].map(|i| drawn[side][n][indices[first + i] as usize])
@@ -229,14 +228,7 @@ fn surface_pop_px(case: &Case, sides: &[Surface<'_>; 2], eye: DVec3, k: f64, mor
                 if !seen(triangle) {
                     continue;
                 }
-                let lattice: Vec<[i64; 3]> =
-                    tri.iter().filter_map(|&v| parent_units(mesh, v as usize, case.parent.lod)).collect();
-                let (Some(low), Some(high)) = (
-                    lattice.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].min(b[k]))),
-                    lattice.iter().copied().reduce(|a, b| [0, 1, 2].map(|k| a[k].max(b[k]))),
-                ) else {
-                    continue;
-                };
+                let Some((low, high)) = lattice_box(mesh, tri, case.parent.lod) else { continue };
                 let others: Vec<[DVec3; 3]> = sides[to]
                     .candidates(low, high, 2)
                     .into_iter()
@@ -298,7 +290,12 @@ fn cases(planet: &ProceduralPlanet, seed: u64, count: usize) -> Vec<Case> {
                     meshes(planet, ChunkColumn { face, lod: lod - 1, x: parent.x * 2 + dx, y: parent.y * 2 + dy })
                 })
                 .collect();
-            Case { children, parent_meshes: meshes(planet, parent), parent }
+            Case {
+                children,
+                parent_meshes: meshes(planet, parent),
+                child_voxel_edge: layout.voxel_edge(lod - 1),
+                parent,
+            }
         })
         .collect()
 }
