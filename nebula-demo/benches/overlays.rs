@@ -15,10 +15,12 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nebula_demo::app::PlanetApp;
-use nebula_demo::gpu::{DebugView, Offscreen};
-use nebula_demo::headless::{Shot, headless_gpu, render_app, shot_view};
+use nebula_demo::headless::{Shot, render_app, shot_view};
 use nebula_demo::hud::Hud;
 use nebula_math::DVec3;
+use nebula_render::DebugView;
+use nebula_render::context::GpuContext;
+use nebula_render::readback::Offscreen;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
 const SIZE: (u32, u32) = (640, 400);
@@ -28,7 +30,7 @@ fn wait(app: &PlanetApp) {
 }
 
 fn overlays(c: &mut Criterion) {
-    let gpu = match headless_gpu() {
+    let gpu = match GpuContext::headless() {
         Ok(gpu) => gpu,
         Err(error) => {
             eprintln!("SKIPPED: no GPU adapter ({error}); nothing measured");
@@ -70,7 +72,7 @@ fn overlays(c: &mut Criterion) {
     let eye = DVec3::new(-2_853_425.89, 5_698_159.83, -144_616.37);
     let look = DVec3::new(-2_921_362.76, 5_660_036.65, -77_821.85);
     let shot = Shot { background: None, sun: Some((30.0, -70.0)), ..Shot::looking_at(eye, look, SIZE) };
-    let (mut app, target) = settled(planet, headless_gpu().expect("adapter, as above"), &shot);
+    let (mut app, target) = settled(planet, GpuContext::headless().expect("adapter, as above"), &shot);
     let mut group = c.benchmark_group("overlays_640x400");
     group.sample_size(20);
     terrain_with_and_without_sky(&mut group, "earth_", &mut app, &target);
@@ -78,7 +80,7 @@ fn overlays(c: &mut Criterion) {
 }
 
 /// `planet` settled for `shot`, and a target to draw it into again.
-fn settled(planet: ProceduralPlanet, gpu: nebula_demo::gpu::Gpu, shot: &Shot) -> (PlanetApp, Offscreen) {
+fn settled(planet: ProceduralPlanet, gpu: GpuContext, shot: &Shot) -> (PlanetApp, Offscreen) {
     let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, shot_view(shot).expect("view")).expect("app");
     render_app(&mut app, shot).expect("settles");
     let target = Offscreen::new(app.gpu(), SIZE).expect("target");

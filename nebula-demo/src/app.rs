@@ -1,23 +1,22 @@
 //! The demo's planet: a bevy_ecs world holding a [`nebula_world::stream::Streamer`]
-//! whose meshes live in the demo's GPU arena, one system that updates it
+//! whose meshes live in a [`PlanetRenderer`], one system that updates it
 //! with the camera each frame, and drawing. What to mesh, draw and free is
-//! the streamer's (see its docs); this module only uploads and draws.
+//! the streamer's, how to draw the renderer's; this module connects them.
 
 use std::sync::Arc;
-use std::time::Instant;
 
 use bevy_ecs::prelude::*;
 use nebula_lod::{Camera, LodSettings};
 use nebula_math::DVec3;
-use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh};
+use nebula_meshing::FrameDraw;
+use nebula_render::context::GpuContext;
+use nebula_render::{DebugView, FrameParams, FrameStats, GpuMesh, PlanetRenderer, RendererOptions};
 use nebula_voxel::{ChunkKey, EditedSource, ProceduralPlanet};
 pub use nebula_world::ecs::PlanetStream;
 pub use nebula_world::stream::{
     DrawList, DrawOptions, MeshCache, MorphRule, OpaqueSea, STAND_IN_LEVEL_STEP, StageTimes,
     StreamFigures as FrameFigures, Streamer,
 };
-
-use crate::gpu::{DebugView, FrameParams, Gpu, GpuMesh};
 
 /// The voxels the demo draws: the procedural planet with the player's
 /// edits (none without `--world`).
@@ -37,12 +36,16 @@ pub struct View {
     pub screen_height_px: f64,
 }
 
-/// The GPU, for uploads and drawing.
+/// The device and the planet's renderer, for uploads and drawing.
 #[derive(Resource)]
-pub struct GpuRes(pub Gpu);
+pub struct Gpu {
+    /// The adapter, device and queue.
+    pub context: GpuContext,
+    /// The planet's renderer.
+    pub renderer: PlanetRenderer,
+}
 
-/// The clear colour behind the sky: space.
-pub const SPACE: [u8; 3] = [3, 4, 9];
+pub use nebula_render::SPACE;
 
 /// The demo's world and schedule.
 pub struct PlanetApp {
@@ -53,33 +56,19 @@ pub struct PlanetApp {
     sun: DVec3,
 }
 
-/// Uploads a finished chunk mesh into the GPU arena.
-fn upload(gpu: &Gpu, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
-    // A small number from the key, for the chunk-colour view.
-    let id = key.x.wrapping_mul(73_856_093)
-        ^ key.y.wrapping_mul(19_349_663)
-        ^ (key.layer as u32).wrapping_mul(83_492_791)
-        ^ ((key.face as u32) << 3);
-    gpu.upload(mesh, key.lod, id)
-}
-
-/// Whether `eye` is in `planet`'s sea: under sea level over a column
-/// whose (unedited) ground lies under the sea too, not in a pit dug below
-/// sea level under land.
-#[must_use]
-pub fn eye_in_sea(planet: &ProceduralPlanet, eye: DVec3) -> bool {
-    let sea_level = nebula_voxel::VoxelSource::layout(planet).sphere().radius();
-    eye.length() < sea_level && eye.length() > 0.0 && planet.height_at(eye.normalize()) < 0.0
-}
-
 impl PlanetApp {
-    /// A world for `planet` with LOD `settings`, drawing through `gpu`. The
-    /// six face roots are meshed before it returns, so every frame has
-    /// something to draw everywhere.
+    /// A world for `planet` with LOD `settings`, drawing with a
+    /// [`PlanetRenderer`] on `gpu`. The six face roots are meshed before it
+    /// returns, so every frame has something to draw everywhere.
     ///
     /// # Errors
     /// If the LOD settings are bad or a root cannot be meshed.
-    pub fn new(planet: impl Into<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
+    pub fn new(
+        planet: impl Into<PlanetVoxels>,
+        settings: LodSettings,
+        gpu: GpuContext,
+        view: View,
+    ) -> anyhow::Result<Self> {
         Self::with_voxels(Arc::new(planet.into()), settings, gpu, view)
     }
 
@@ -88,9 +77,21 @@ impl PlanetApp {
     ///
     /// # Errors
     /// As [`PlanetApp::new`].
-    pub fn with_voxels(planet: Arc<PlanetVoxels>, settings: LodSettings, gpu: Gpu, view: View) -> anyhow::Result<Self> {
+    pub fn with_voxels(
+        planet: Arc<PlanetVoxels>,
+        settings: LodSettings,
+        context: GpuContext,
+        view: View,
+    ) -> anyhow::Result<Self> {
+        let renderer = PlanetRenderer::new(
+            &context.adapter,
+            &context.device,
+            &context.queue,
+            &RendererOptions { color_format: context.color_format },
+        )?;
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-        let streamer = Streamer::new(planet, settings, view.camera, threads, &mut |key, mesh| upload(&gpu, key, mesh))?;
+        let streamer =
+            Streamer::new(planet, settings, view.camera, threads, &mut |key, mesh| renderer.upload(key, mesh))?;
         let refined = streamer.tree().screen_space().threshold_px();
         if refined > settings.threshold_px {
             eprintln!(
@@ -102,10 +103,10 @@ impl PlanetApp {
         let mut world = World::new();
         world.insert_resource(PlanetStream(streamer));
         world.insert_resource(view);
-        world.insert_resource(GpuRes(gpu));
+        world.insert_resource(Gpu { context, renderer });
         let mut schedule = Schedule::default();
         schedule.add_systems(stream_system);
-        Ok(Self { world, schedule, sun: crate::sun::default_sun() })
+        Ok(Self { world, schedule, sun: nebula_render::sun::default_sun() })
     }
 
     /// The streamer.
@@ -127,7 +128,7 @@ impl PlanetApp {
     /// [`PlanetApp::draw`] is given changes.
     pub fn set_sea_drawn(&mut self, drawn: bool) {
         let radius = nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius();
-        let sea = drawn.then(|| OpaqueSea { radius, hiding_depth: crate::gpu::sea_hiding_depth(radius) });
+        let sea = drawn.then(|| OpaqueSea { radius, hiding_depth: nebula_render::sea_hiding_depth(radius) });
         self.streamer_mut().0.set_opaque_sea(sea);
     }
 
@@ -201,15 +202,15 @@ impl PlanetApp {
     }
 
     /// Moves the sun to unit world direction `towards` (see
-    /// [`crate::sun::sun_direction`] to place it over a view).
+    /// [`nebula_render::sun::sun_direction`] to place it over a view).
     ///
     /// # Errors
-    /// [`crate::sun::SunError::NonFinite`] for NaN or infinite input or a
+    /// [`nebula_render::sun::SunError::NonFinite`] for NaN or infinite input or a
     /// zero vector; the sun stays where it was.
-    pub fn set_sun(&mut self, towards: DVec3) -> Result<(), crate::sun::SunError> {
+    pub fn set_sun(&mut self, towards: DVec3) -> Result<(), nebula_render::sun::SunError> {
         let length = towards.length();
         if !length.is_finite() || length == 0.0 {
-            return Err(crate::sun::SunError::NonFinite { name: "direction", value: length });
+            return Err(nebula_render::sun::SunError::NonFinite { name: "direction", value: length });
         }
         self.sun = towards / length;
         Ok(())
@@ -223,47 +224,36 @@ impl PlanetApp {
 
     /// Draws this frame's [`DrawList`] into `target`: over `background`
     /// alone when one is given (nothing else is drawn over it, so crack
-    /// checks can count it), else under a sky, with sea and haze.
+    /// checks can count it), else under a sky, with sea and haze. Returns
+    /// the renderer's figures of the frame.
     pub fn draw(
         &mut self,
         target: &wgpu::TextureView,
         size: (u32, u32),
         background: Option<[u8; 3]>,
         debug: DebugView,
-    ) {
-        let start = Instant::now();
+    ) -> FrameStats {
         let view = *self.world.resource::<View>();
-        let frame_draw = self.frame_draw();
-        let max_lod = self.streamer().tree().max_lod();
-        let frame = FrameParams {
-            eye: view.camera.position,
-            forward: view.camera.forward,
-            up: view.camera.up,
-            fov_y_degrees: view.fov_y_degrees as f32,
-            k: frame_draw.k as f32,
-            threshold_px: frame_draw.threshold_px as f32,
-            background: background.unwrap_or(SPACE),
-            view: debug,
-            morph: frame_draw.morph,
-            max_lod,
-            sun: self.sun.as_vec3(),
-            atmosphere: background
-                .is_none()
-                .then(|| nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius()),
-            eye_in_sea: eye_in_sea(self.streamer().voxels().base(), view.camera.position),
-            voxel_size_and_relief: {
-                let planet = self.streamer().voxels().base();
-                (planet.voxel_size(), planet.relief())
-            },
-        };
-        self.world.resource_scope(|world, mut gpu: Mut<GpuRes>| {
-            let stream = world.resource::<Stream>();
-            let meshes: Vec<(&GpuMesh, ChunkDraw)> =
-                stream.0.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw)).collect();
-            gpu.0.draw(target, size, &frame, &meshes);
+        let streamer = self.streamer();
+        let mut frame = FrameParams::new(
+            streamer.voxels().base(),
+            &view.camera,
+            view.fov_y_degrees,
+            &self.frame_draw(),
+            streamer.tree().max_lod(),
+        );
+        frame.view = debug;
+        frame.sun = self.sun.as_vec3();
+        if let Some(background) = background {
+            frame.background = background;
+            frame.atmosphere = None;
+        }
+        let stats = self.world.resource_scope(|world, mut gpu: Mut<Gpu>| {
+            let drawn = world.resource::<Stream>().0.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw));
+            gpu.renderer.render(target, size, &frame, drawn)
         });
-        let ms = start.elapsed().as_secs_f64() * 1e3;
-        self.streamer_mut().0.set_render_ms(ms);
+        self.streamer_mut().0.set_render_ms(stats.encode_ms);
+        stats
     }
 
     /// What the draw list draws, for the crack oracle: the meshes on the
@@ -299,21 +289,28 @@ impl PlanetApp {
         self.streamer().view_min_surface_radius()
     }
 
-    /// The GPU.
+    /// The adapter, device and queue.
     #[must_use]
-    pub fn gpu(&self) -> &Gpu {
-        &self.world.resource::<GpuRes>().0
+    pub fn gpu(&self) -> &GpuContext {
+        &self.world.resource::<Gpu>().context
     }
 
-    /// The GPU, to change how it draws ([`Gpu::set_multisampling`]).
-    pub fn gpu_mut(&mut self) -> &mut Gpu {
-        &mut self.world.resource_mut::<GpuRes>().into_inner().0
+    /// The planet's renderer.
+    #[must_use]
+    pub fn renderer(&self) -> &PlanetRenderer {
+        &self.world.resource::<Gpu>().renderer
+    }
+
+    /// The renderer, to change how it draws
+    /// ([`PlanetRenderer::set_multisampling`]).
+    pub fn renderer_mut(&mut self) -> &mut PlanetRenderer {
+        &mut self.world.resource_mut::<Gpu>().into_inner().renderer
     }
 }
 
-/// One frame of the streamer for the current view, uploading into the GPU
-/// arena.
-fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<GpuRes>) {
+/// One frame of the streamer for the current view, uploading into the
+/// renderer.
+fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<Gpu>) {
     // A zoom or a resized window refines for the new view at once.
     let tau = stream.0.tree().settings().threshold_px;
     if let Err(error) = stream.0.set_view(tau, view.screen_height_px, view.fov_y_degrees) {
@@ -322,12 +319,10 @@ fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<GpuRes>) 
     let mut uploaded = false;
     stream.0.update(view.camera, &mut |key, mesh| {
         uploaded = true;
-        upload(&gpu.0, key, mesh)
+        gpu.renderer.upload(key, mesh)
     });
     if uploaded {
-        // Let wgpu release the staging memory of the uploads now.
-        gpu.0.queue.submit([]);
-        let _ = gpu.0.device.poll(wgpu::PollType::Poll);
+        gpu.renderer.finish_uploads();
     }
 }
 
@@ -335,38 +330,4 @@ fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<GpuRes>) 
 #[must_use]
 pub fn camera(position: DVec3, forward: DVec3, up: DVec3, aspect: f64) -> Camera {
     Camera { position, forward, up, aspect }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nebula_voxel::PlanetSettings;
-
-    /// Under sea level over the sea is in the sea; the same depth under land
-    /// (a pit dug below sea level) is not, nor is anywhere above sea level.
-    #[test]
-    fn the_eye_is_in_the_sea_only_over_sea_bed() {
-        let planet = ProceduralPlanet::new(PlanetSettings::small(7)).expect("valid planet");
-        let radius = planet.settings().radius;
-        let mut state = 3_u64;
-        let (mut sea, mut land) = (0, 0);
-        for _ in 0..400 {
-            let d = DVec3::new(
-                nebula_math::unit_random(&mut state) - 0.5,
-                nebula_math::unit_random(&mut state) - 0.5,
-                nebula_math::unit_random(&mut state) - 0.5,
-            )
-            .normalize();
-            let under = eye_in_sea(&planet, d * (radius - 2.0));
-            if planet.height_at(d) < 0.0 {
-                sea += 1;
-                assert!(under, "{d}: under the sea but not in it");
-            } else {
-                land += 1;
-                assert!(!under, "{d}: in a pit under land but in the sea");
-            }
-            assert!(!eye_in_sea(&planet, d * (radius + 2.0)), "above sea level");
-        }
-        assert!(sea > 20 && land > 20, "{sea} over sea, {land} over land");
-    }
 }

@@ -220,6 +220,9 @@ impl FlightReport {
                     "step_ms": f.step_ms,
                     "upload_bytes": f.figures.frame.times.upload_bytes,
                     "draw_ms": f.figures.draw_ms,
+                    "encode_ms": f.figures.render.encode_ms,
+                    "draw_calls": f.figures.render.draw_calls,
+                    "gpu_ms": f.figures.render.gpu_ms,
                     "check_ms": f.figures.check_ms,
                 })
             })

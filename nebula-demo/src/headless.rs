@@ -10,8 +10,11 @@ use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
 use crate::app::{FrameFigures, PlanetApp, View, camera};
+use nebula_render::DebugView;
+use nebula_render::context::GpuContext;
+use nebula_render::readback::Offscreen;
+
 use crate::crack::CrackCount;
-use crate::gpu::{DebugView, Gpu, GpuError, Offscreen};
 
 /// One picture to take.
 #[derive(Clone, Debug)]
@@ -37,7 +40,7 @@ pub struct Shot {
     pub view: DebugView,
     /// Sun elevation and azimuth in degrees over the horizon at
     /// `position`, azimuth from the view direction (see
-    /// [`crate::sun::sun_direction`]); `None` keeps the app's sun.
+    /// [`nebula_render::sun::sun_direction`]); `None` keeps the app's sun.
     pub sun: Option<(f64, f64)>,
 }
 
@@ -105,6 +108,9 @@ pub struct Figures {
     pub settled_ms: f64,
     /// Milliseconds the draw and read-back took.
     pub draw_ms: f64,
+    /// What the renderer recorded: CPU time to encode and submit, draw
+    /// commands, GPU time where the device has timestamps.
+    pub render: nebula_render::FrameStats,
     /// Milliseconds the crack oracle took.
     pub check_ms: f64,
     /// Bytes of the GPU buffers holding the meshes (arena pages, used or
@@ -129,23 +135,19 @@ pub fn peak_rss_bytes() -> Option<u64> {
 /// lies within a few pixels of the truth, never over the camera.
 pub const MAX_FIRST_FRAME_LEVELS: u8 = 3;
 
-/// Opens a GPU for offscreen work.
-///
-/// # Errors
-/// [`GpuError::NoAdapter`] when there is no adapter at all.
-pub fn headless_gpu() -> Result<Gpu, GpuError> {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-    Gpu::new(&instance, None)
-}
-
 /// Puts `app`'s sun where `shot` asks ([`Shot::sun`], over the horizon at
 /// its camera); nothing when it asks for none.
 ///
 /// # Errors
-/// [`crate::sun::SunError`] for a bad elevation, azimuth or camera.
-pub fn place_sun(app: &mut PlanetApp, shot: &Shot) -> Result<(), crate::sun::SunError> {
+/// [`nebula_render::sun::SunError`] for a bad elevation, azimuth or camera.
+pub fn place_sun(app: &mut PlanetApp, shot: &Shot) -> Result<(), nebula_render::sun::SunError> {
     if let Some((elevation, azimuth)) = shot.sun {
-        app.set_sun(crate::sun::sun_direction(shot.position, shot.look_at - shot.position, elevation, azimuth)?)?;
+        app.set_sun(nebula_render::sun::sun_direction(
+            shot.position,
+            shot.look_at - shot.position,
+            elevation,
+            azimuth,
+        )?)?;
     }
     Ok(())
 }
@@ -155,7 +157,7 @@ pub fn place_sun(app: &mut PlanetApp, shot: &Shot) -> Result<(), crate::sun::Sun
 /// # Errors
 /// No adapter, a bad camera (inside the planet, NaN) or bad settings.
 pub fn render_shot(planet: &PlanetSettings, shot: &Shot) -> anyhow::Result<Picture> {
-    let gpu = headless_gpu()?;
+    let gpu = GpuContext::headless()?;
     let planet = ProceduralPlanet::new(planet.clone())?;
     let view = shot_view(shot)?;
     let mut app = PlanetApp::new(planet, shot.lod_settings(), gpu, view)?;
@@ -297,6 +299,8 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
     let target = Offscreen::new(app.gpu(), shot.size)?;
     app.draw(&target.view, shot.size, shot.background, shot.view);
     let rgba = target.read(app.gpu()).context("reading the image back")?;
+    // The read-back waited for the frame: its GPU time is in.
+    let render = app.renderer_mut().stats();
     let draw_ms = started.elapsed().as_secs_f64() * 1e3;
     let started = Instant::now();
     let cracks = match shot.background {
@@ -318,8 +322,9 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
             planet_pixels: cracks.planet_pixels,
             cracks,
             draw_ms,
+            render,
             check_ms: started.elapsed().as_secs_f64() * 1e3,
-            gpu_buffer_bytes: app.gpu().mesh_buffer_bytes(),
+            gpu_buffer_bytes: app.renderer().mesh_buffer_bytes(),
             pixels: u64::from(shot.size.0) * u64::from(shot.size.1),
             ..Figures::default()
         },
@@ -390,6 +395,10 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
             "upload": f.times.upload_ms,
             "render": f.times.render_ms,
         },
+        "encode_ms": figures.render.encode_ms,
+        "draw_calls": figures.render.draw_calls,
+        "chunk_draws": figures.render.chunk_draws,
+        "gpu_ms": figures.render.gpu_ms,
         "chunks_meshed": f.times.chunks_meshed,
         "mesh_errors": f.times.mesh_errors,
         "crack_pixels": figures.crack_pixels,

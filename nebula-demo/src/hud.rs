@@ -7,7 +7,8 @@ use wgpu_text::glyph_brush::ab_glyph::FontRef;
 use wgpu_text::glyph_brush::{Section, Text};
 use wgpu_text::{BrushBuilder, TextBrush};
 
-use crate::gpu::{Gpu, overlay_pass};
+use nebula_render::context::GpuContext;
+use nebula_render::overlay_pass;
 
 /// The HUD's font.
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSansMono.ttf");
@@ -37,13 +38,13 @@ impl Hud {
     ///
     /// # Errors
     /// [`HudError::Font`] if the bundled font does not parse.
-    pub fn new(gpu: &Gpu, size: (u32, u32), format: wgpu::TextureFormat) -> Result<Self, HudError> {
+    pub fn new(gpu: &GpuContext, size: (u32, u32), format: wgpu::TextureFormat) -> Result<Self, HudError> {
         let builder = BrushBuilder::using_font_bytes(FONT).map_err(|e| HudError::Font(e.to_string()))?;
         Ok(Self { brush: builder.build(&gpu.device, size.0, size.1, format), text: String::new(), visible: true })
     }
 
     /// Follows a resized target.
-    pub fn resize(&self, gpu: &Gpu, size: (u32, u32)) {
+    pub fn resize(&self, gpu: &GpuContext, size: (u32, u32)) {
         self.brush.resize_view(size.0 as f32, size.1 as f32, &gpu.queue);
     }
 
@@ -56,7 +57,7 @@ impl Hud {
     ///
     /// # Errors
     /// [`HudError::Text`] if the glyph cache cannot take the text.
-    pub fn draw(&mut self, gpu: &Gpu, target: &wgpu::TextureView) -> Result<(), HudError> {
+    pub fn draw(&mut self, gpu: &GpuContext, target: &wgpu::TextureView) -> Result<(), HudError> {
         if !self.visible || self.text.is_empty() {
             return Ok(());
         }

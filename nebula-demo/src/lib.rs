@@ -1,15 +1,13 @@
 //! `nebula-demo` as a library: the headless renderer the integration tests
 //! drive, and the pieces the windowed binary shares.
 //!
-//! Structure (after wgpu's examples): [`gpu`] owns device, pipeline and
-//! buffers and draws what it is given; [`app`] is the bevy_ecs world with
-//! systems for the LOD update, prioritised meshing jobs on rayon that never
-//! block a frame, upload, and the choice of what to draw so that every
-//! frame is complete; [`headless`] renders a camera to an RGBA image and
+//! A thin client of the libraries: [`app`] is the bevy_ecs world holding
+//! `nebula_world`'s streamer, drawing through `nebula_render`'s
+//! `PlanetRenderer`; [`headless`] renders a camera to an RGBA image and
 //! writes the report; [`crack`] is the crack oracle; [`flight`] flies a
 //! keyframed path in real time and checks every frame; `main.rs` adds the
-//! window, input and the command line. No LOD or meshing logic lives here:
-//! that is `nebula_lod` and `nebula_meshing`.
+//! window, input and the command line. No LOD, meshing or drawing logic
+//! lives here.
 //!
 //! ```no_run
 //! use nebula_demo::headless::{Shot, render_shot};
@@ -25,11 +23,8 @@
 #![recursion_limit = "256"]
 
 pub mod app;
-pub mod arena;
 pub mod commands;
 pub mod crack;
 pub mod flight;
-pub mod gpu;
 pub mod headless;
 pub mod hud;
-pub mod sun;

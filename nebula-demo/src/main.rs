@@ -18,9 +18,10 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, camera};
 use nebula_demo::commands;
-use nebula_demo::gpu::{DebugView, Gpu};
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::hud::Hud;
+use nebula_render::DebugView;
+use nebula_render::context::GpuContext;
 
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, Voxel, VoxelHit, VoxelSource};
@@ -95,8 +96,8 @@ struct Args {
     /// Screen-space error threshold in pixels.
     #[arg(long, value_name = "PX", default_value_t = 1.0)]
     sse: f64,
-    /// Debug view.
-    #[arg(long, value_enum, default_value_t = DebugView::Shaded)]
+    /// Debug view: shaded, lod, skirts, morph, wireframe or chunks.
+    #[arg(long, value_name = "VIEW", default_value = "shaded")]
     view: DebugView,
     /// Write the frame's figures as JSON here (with --flight: every frame's
     /// and the worst frame).
@@ -167,12 +168,12 @@ fn set_multisampling(app: &mut PlanetApp, msaa: Multisampling) {
     match msaa {
         Multisampling::Auto => {}
         Multisampling::On => {
-            if !app.gpu_mut().set_multisampling(true) {
+            if !app.renderer_mut().set_multisampling(true) {
                 eprintln!("nebula-demo: this adapter cannot draw 4 samples per pixel in every target; --msaa ignored");
             }
         }
         Multisampling::Off => {
-            app.gpu_mut().set_multisampling(false);
+            app.renderer_mut().set_multisampling(false);
         }
     }
 }
@@ -259,7 +260,7 @@ fn parse_sun(text: &str) -> Result<(f64, f64), String> {
     let number = |s: &str| s.trim().parse::<f64>().map_err(|e| format!("{s:?}: {e}"));
     let (elevation, azimuth) = (number(elevation)?, number(azimuth)?);
     // The same checks as placing it, with a harmless view.
-    nebula_demo::sun::sun_direction(DVec3::X, DVec3::Y, elevation, azimuth).map_err(|e| e.to_string())?;
+    nebula_render::sun::sun_direction(DVec3::X, DVec3::Y, elevation, azimuth).map_err(|e| e.to_string())?;
     Ok((elevation, azimuth))
 }
 
@@ -406,7 +407,7 @@ fn draw_options(args: &Args) -> DrawOptions {
 }
 
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
-    let gpu = nebula_demo::headless::headless_gpu()?;
+    let gpu = GpuContext::headless()?;
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     set_multisampling(&mut app, args.msaa);
@@ -449,7 +450,7 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
 fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
-    let gpu = nebula_demo::headless::headless_gpu()?;
+    let gpu = GpuContext::headless()?;
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     set_multisampling(&mut app, args.msaa);
@@ -734,7 +735,7 @@ impl ApplicationHandler for Windowed {
             let window = Arc::new(event_loop.create_window(attributes)?);
             let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
             let surface = instance.create_surface(window.clone())?;
-            let gpu = Gpu::new(&instance, Some(&surface))?;
+            let gpu = GpuContext::new(&instance, Some(&surface))?;
             let size = window.inner_size();
             let config = gpu.surface_config(&surface, (size.width, size.height)).context("surface not supported")?;
             surface.configure(&gpu.device, &config);
@@ -762,7 +763,14 @@ impl ApplicationHandler for Windowed {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => {
                 if let Some(state) = self.state.as_mut() {
-                    (state.config.width, state.config.height) = state.app.gpu().window_size((size.width, size.height));
+                    let (width, height) = state.app.gpu().window_size((size.width, size.height));
+                    if (width, height) != (size.width, size.height) {
+                        eprintln!(
+                            "nebula-demo: a {}×{} window is drawn at {width}×{height} (this GPU's limit)",
+                            size.width, size.height
+                        );
+                    }
+                    (state.config.width, state.config.height) = (width, height);
                     state.surface.configure(&state.app.gpu().device, &state.config);
                     state.hud.resize(state.app.gpu(), (state.config.width, state.config.height));
                 }
@@ -793,7 +801,7 @@ impl ApplicationHandler for Windowed {
                             // Lower or raise the sun 5° over the camera's horizon.
                             let degrees = if code == KeyCode::BracketRight { 5.0 } else { -5.0 };
                             if let Some(state) = self.state.as_mut() {
-                                let sun = nebula_demo::sun::raise_sun(state.app.sun(), self.eye, degrees);
+                                let sun = nebula_render::sun::raise_sun(state.app.sun(), self.eye, degrees);
                                 // A unit vector from a unit vector: never refused.
                                 let _ = state.app.set_sun(sun);
                             }

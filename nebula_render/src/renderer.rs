@@ -1,35 +1,57 @@
-//! The wgpu side: device, pipeline, per-chunk buffers, drawing and read-back.
-//! Knows nothing about LOD or meshing: it draws the meshes it is given.
+//! [`PlanetRenderer`]: the planet's pipelines, per-frame constants, the
+//! indirect draw list and the targets the terrain and sky passes share.
+//! It draws the meshes it is given; what to draw is the streamer's.
 
 use std::num::NonZeroU64;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
-use nebula_meshing::{ChunkDraw, RenderVertex, split_high_low};
+use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, RenderVertex, drawn_ranges, split_high_low};
+use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
+use wgpu::util::DrawIndexedIndirectArgs;
 
 use crate::arena::{MeshArena, Slot};
-use nebula_meshing::{RenderMesh, drawn_ranges};
 
-/// The colour format of the offscreen target: plain UNORM, so the clear
+/// The colour format of offscreen targets: plain UNORM, so the clear
 /// colour is stored exactly (the shader encodes sRGB itself).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// The depth format of the terrain pass. Depth is **reversed-Z** with an
+/// infinite far plane ([`view_projection`]): cleared to 0, nearer is
+/// greater (`CompareFunction::Greater`). A game drawing into the same
+/// depth afterwards uses the same convention.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Where the terrain pass drew sea bed (1) or not (0), for the sky pass: the
 /// sea is drawn over sea bed only (and, at LODs whose voxels are taller
-/// than the relief, over the sides under sea level), never over land that a coarse LOD drew
-/// below sea level.
-const SEA_MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// than the relief, over the sides under sea level), never over land that
+/// a coarse LOD drew below sea level.
+pub const SEA_MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// Samples per pixel of the shaded view with its sky: voxels a pixel wide
 /// and less (everything past the first few hundred metres) alias into
 /// streaks without them. Crack checks draw with one sample, so every pixel
 /// is either the terrain or the clear colour.
-const SMOOTH_SAMPLES: u32 = 4;
+pub const SMOOTH_SAMPLES: u32 = 4;
 /// Bytes of one chunk's entry in the per-frame chunk table.
 const CHUNK_UNIFORM_BYTES: u64 = size_of::<ChunkUniform>() as u64;
+/// Bytes of one indirect draw.
+const DRAW_ARGS_BYTES: u64 = size_of::<DrawIndexedIndirectArgs>() as u64;
+
+/// Device features the renderer uses where the device has them: indirect
+/// draws that start at a chunk's entry in the chunk table
+/// (`INDIRECT_FIRST_INSTANCE`; without it every chunk range is its own
+/// draw call), GPU timings (`TIMESTAMP_QUERY`) and the wireframe view
+/// (`POLYGON_MODE_LINE`). Ask for `adapter.features() & WANTED_FEATURES`
+/// when opening the device.
+pub const WANTED_FEATURES: wgpu::Features = wgpu::Features::INDIRECT_FIRST_INSTANCE
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::POLYGON_MODE_LINE);
 
 /// Errors of the GPU side.
 #[derive(Debug, thiserror::Error)]
-pub enum GpuError {
+#[non_exhaustive]
+pub enum RenderError {
     /// No adapter at all (no GPU and no software driver).
     #[error("no GPU adapter found (install Mesa's software Vulkan driver: apt-get install mesa-vulkan-drivers): {0}")]
     NoAdapter(String),
@@ -49,6 +71,9 @@ pub enum GpuError {
         /// The device limit it passes.
         limit: String,
     },
+    /// A colour format the renderer cannot draw to.
+    #[error("the renderer cannot draw to {0:?}: it needs a renderable, blendable colour format")]
+    ColorFormat(wgpu::TextureFormat),
 }
 
 #[repr(C)]
@@ -92,7 +117,8 @@ pub fn water_extinction(radius: f64) -> f64 {
 /// The depth of water under which the sky pass hides the sea bed: light
 /// from it is dimmed by e⁻¹², 6·10⁻⁶ of itself, far below an 8-bit step
 /// even where the sRGB curve is steepest, so nothing under it changes a
-/// pixel.
+/// pixel. (`nebula_world::stream::OpaqueSea` takes it, so that the
+/// streamer leaves that sea bed coarse.)
 #[must_use]
 pub fn sea_hiding_depth(radius: f64) -> f64 {
     12.0 * water_extinction(radius)
@@ -105,8 +131,8 @@ struct ChunkUniform {
     skirt_depths: [f32; 4],
 }
 
-/// Debug views, chosen by key or flag.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+/// Debug views.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum DebugView {
     /// Materials and sun light.
     #[default]
@@ -123,7 +149,32 @@ pub enum DebugView {
     Chunks,
 }
 
-/// One chunk's mesh on the GPU.
+impl DebugView {
+    /// Every view with its name, in key order (1–6 in the demo's window).
+    pub const ALL: [(&'static str, DebugView); 6] = [
+        ("shaded", DebugView::Shaded),
+        ("lod", DebugView::Lod),
+        ("skirts", DebugView::Skirts),
+        ("morph", DebugView::Morph),
+        ("wireframe", DebugView::Wireframe),
+        ("chunks", DebugView::Chunks),
+    ];
+}
+
+impl std::str::FromStr for DebugView {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        Self::ALL.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|(_, v)| *v).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|(n, _)| *n).collect();
+            format!("unknown view '{name}': one of {}", names.join(", "))
+        })
+    }
+}
+
+/// One chunk's mesh on the GPU: what [`PlanetRenderer::upload`] makes for
+/// the streamer (`nebula_world::stream::MeshHandle`). Dropping it frees its
+/// space in the renderer's buffers.
 pub struct GpuMesh {
     /// Where its vertices and indices live (`None`: empty, never drawn).
     slot: Option<Slot>,
@@ -133,7 +184,7 @@ pub struct GpuMesh {
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
-    /// Bytes of its vertices and indices in the arena.
+    /// Bytes of its vertices and indices in the renderer's buffers.
     pub bytes: u64,
 }
 
@@ -144,6 +195,7 @@ impl nebula_world::stream::MeshHandle for GpuMesh {
 }
 
 /// What a frame draws: the view and the per-frame constants.
+#[derive(Clone, Debug)]
 pub struct FrameParams {
     /// Camera position (f64, world).
     pub eye: DVec3,
@@ -153,9 +205,9 @@ pub struct FrameParams {
     pub up: DVec3,
     /// Vertical field of view, degrees.
     pub fov_y_degrees: f32,
-    /// K of the SSE math (pixels per radian).
+    /// K of the SSE math (pixels per radian; `nebula_meshing::FrameDraw`).
     pub k: f32,
-    /// τ, pixels.
+    /// τ, pixels (`nebula_meshing::FrameDraw`).
     pub threshold_px: f32,
     /// Clear colour, 0–255 per channel.
     pub background: [u8; 3],
@@ -179,19 +231,97 @@ pub struct FrameParams {
     pub voxel_size_and_relief: (f64, f64),
 }
 
-/// Device, queue, pipeline and the per-chunk uniform ring.
-pub struct Gpu {
-    /// The device.
-    pub device: wgpu::Device,
-    /// The queue.
-    pub queue: wgpu::Queue,
-    /// What the adapter says it is.
-    pub adapter_name: String,
-    /// The colour format the pipeline draws to.
+/// The clear colour behind the sky: space.
+pub const SPACE: [u8; 3] = [3, 4, 9];
+
+impl FrameParams {
+    /// The shaded view of `planet` from `camera` with its sky, sea and haze
+    /// and the default sun ([`crate::sun::default_sun`]): `frame` is the
+    /// streamer's `frame_draw(camera.position)` and `max_lod` its tree's.
+    /// Change the public fields for a debug view, a background or a sun.
+    #[must_use]
+    pub fn new(
+        planet: &ProceduralPlanet,
+        camera: &nebula_lod::Camera,
+        fov_y_degrees: f64,
+        frame: &FrameDraw,
+        max_lod: u8,
+    ) -> Self {
+        Self {
+            eye: camera.position,
+            forward: camera.forward,
+            up: camera.up,
+            fov_y_degrees: fov_y_degrees as f32,
+            k: frame.k as f32,
+            threshold_px: frame.threshold_px as f32,
+            background: SPACE,
+            view: DebugView::Shaded,
+            morph: frame.morph,
+            max_lod,
+            atmosphere: Some(planet.layout().sphere().radius()),
+            eye_in_sea: eye_in_sea(planet, camera.position),
+            sun: crate::sun::default_sun().as_vec3(),
+            voxel_size_and_relief: (planet.voxel_size(), planet.relief()),
+        }
+    }
+}
+
+/// Whether `eye` is in `planet`'s sea: under sea level over a column
+/// whose (unedited) ground lies under the sea too, not in a pit dug below
+/// sea level under land.
+#[must_use]
+pub fn eye_in_sea(planet: &ProceduralPlanet, eye: DVec3) -> bool {
+    let sea_level = planet.layout().sphere().radius();
+    eye.length() < sea_level && eye.length() > 0.0 && planet.height_at(eye.normalize()) < 0.0
+}
+
+/// How the renderer draws.
+#[derive(Clone, Copy, Debug)]
+pub struct RendererOptions {
+    /// The format of the colour target the game draws the planet into
+    /// (a surface's, or [`COLOR_FORMAT`] offscreen). The shader encodes
+    /// sRGB itself: give a non-sRGB format.
     pub color_format: wgpu::TextureFormat,
-    adapter: wgpu::Adapter,
+}
+
+/// Figures of the last frame recorded ([`PlanetRenderer::render`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Milliseconds of CPU time to write the frame's constants and draw
+    /// list, record the passes and submit them (not waiting for the GPU).
+    pub encode_ms: f64,
+    /// Draw commands recorded: one multi-draw per mesh buffer page (or a
+    /// draw per chunk range where the device cannot start an indirect draw
+    /// at an instance), plus the sky pass's one.
+    pub draw_calls: u32,
+    /// Chunk ranges drawn (indirect draws, or direct draws without them).
+    pub chunk_draws: u32,
+    /// Milliseconds the GPU spent on the terrain and sky passes of an
+    /// earlier frame (timestamp queries: the newest finished measurement),
+    /// `None` where the device has no timestamps or none has finished yet.
+    pub gpu_ms: Option<f64>,
+}
+
+/// The draws of one mesh buffer page: a range of the indirect buffer.
+#[derive(Clone, Copy, Debug)]
+struct PageDraws {
+    page: usize,
+    first: u32,
+    count: u32,
+}
+
+/// Draws a streamed planet with a game's own wgpu device and queue: owns
+/// the pipelines, the chunk meshes' buffers (uploads go through
+/// [`PlanetRenderer::upload`]), the per-frame constants and draw list, and
+/// the depth and sea mask the terrain and sky passes share. No global
+/// state: two renderers on one device are independent.
+pub struct PlanetRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    /// The colour format the pipelines draw to.
+    color_format: wgpu::TextureFormat,
     pipeline: wgpu::RenderPipeline,
-    /// The same pipeline drawing triangle edges, if the adapter can.
+    /// The same pipeline drawing triangle edges, if the device can.
     wire_pipeline: Option<wgpu::RenderPipeline>,
     frame_buffer: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
@@ -199,6 +329,15 @@ pub struct Gpu {
     chunk_buffer: wgpu::Buffer,
     chunk_group: wgpu::BindGroup,
     chunk_capacity: u64,
+    /// This frame's draws, grouped by page, and the buffer they live in.
+    indirect: wgpu::Buffer,
+    indirect_capacity: u64,
+    page_draws: Vec<PageDraws>,
+    /// The same draws on the CPU (the direct-draw fallback reads them).
+    draw_args: Vec<DrawIndexedIndirectArgs>,
+    /// Whether draws go through the indirect buffer (the device can start
+    /// an indirect draw at an instance).
+    indirect_draws: bool,
     /// The depth target and sea mask, and the sky pass's bind group that
     /// reads them.
     depth: Option<DepthTarget>,
@@ -213,41 +352,47 @@ pub struct Gpu {
     /// Whether the shaded view with its sky is multisampled
     /// ([`Self::set_multisampling`]).
     multisampling: bool,
+    /// What the prepared frame draws with: the pipeline's samples and
+    /// debug view, and whether the sky pass follows.
+    prepared: Option<Prepared>,
+    /// GPU timings, where the device has timestamps.
+    timer: Option<GpuTimer>,
+    stats: FrameStats,
     /// The chunk meshes' buffers.
     arena: MeshArena,
 }
 
-impl Gpu {
-    /// Opens the first adapter wgpu offers (lavapipe on a machine with no
-    /// GPU), optionally one that can present to `surface`. Draws to
-    /// [`COLOR_FORMAT`] offscreen, or to the surface's first non-sRGB format.
+/// What [`PlanetRenderer::prepare`] chose for the frame.
+#[derive(Clone, Copy, Debug)]
+struct Prepared {
+    smooth: bool,
+    view: DebugView,
+    sky: bool,
+    background: [u8; 3],
+}
+
+impl PlanetRenderer {
+    /// A renderer drawing into `options.color_format` with `device` (opened
+    /// from `adapter`, ideally with `adapter.features() & WANTED_FEATURES`)
+    /// and `queue`, which it keeps (wgpu handles are shared references).
     ///
     /// # Errors
-    /// [`GpuError::NoAdapter`] or [`GpuError::Device`].
-    pub fn new(instance: &wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> Result<Self, GpuError> {
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: surface,
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let adapter_name = adapter.get_info().name;
+    /// [`RenderError::ColorFormat`] for an sRGB or non-renderable format.
+    pub fn new(
+        adapter: &wgpu::Adapter,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        options: &RendererOptions,
+    ) -> Result<Self, RenderError> {
+        let color_format = options.color_format;
+        let renderable = adapter
+            .get_texture_format_features(color_format)
+            .allowed_usages
+            .contains(wgpu::TextureUsages::RENDER_ATTACHMENT);
+        if color_format.is_srgb() || !renderable || color_format.has_depth_aspect() {
+            return Err(RenderError::ColorFormat(color_format));
+        }
         let on_a_gpu = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
-        let color_format = match surface {
-            None => COLOR_FORMAT,
-            Some(surface) => {
-                let formats = surface.get_capabilities(&adapter).formats;
-                formats.iter().copied().find(|f| !f.is_srgb()).or(formats.first().copied()).unwrap_or(COLOR_FORMAT)
-            }
-        };
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("nebula device"),
-            required_features: adapter.features() & wgpu::Features::POLYGON_MODE_LINE,
-            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::Device(e.to_string()))?;
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("nebula shader"),
             source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
@@ -447,13 +592,14 @@ impl Gpu {
             layout: &frame_layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
         });
-        let (chunk_buffer, chunk_group) = chunk_ring(&device, &chunk_layout, 256);
+        let (chunk_buffer, chunk_group) = chunk_ring(device, &chunk_layout, 256);
+        let indirect_draws = device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
+        let indirect = indirect_buffer(device, 1024);
+        let timer = device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| GpuTimer::new(device, queue));
         Ok(Self {
-            device,
-            queue,
-            adapter_name,
+            device: device.clone(),
+            queue: queue.clone(),
             color_format,
-            adapter,
             pipeline,
             wire_pipeline,
             frame_buffer,
@@ -462,6 +608,11 @@ impl Gpu {
             chunk_buffer,
             chunk_group,
             chunk_capacity: 256,
+            indirect,
+            indirect_capacity: 1024,
+            page_draws: Vec::new(),
+            draw_args: Vec::new(),
+            indirect_draws,
             depth: None,
             sky_pipeline,
             sky_layout,
@@ -471,8 +622,17 @@ impl Gpu {
             multisampling: smooth.is_some() && on_a_gpu,
             smooth,
             smooth_targets: None,
+            prepared: None,
+            timer,
+            stats: FrameStats::default(),
             arena: MeshArena::default(),
         })
+    }
+
+    /// The colour format the renderer draws to.
+    #[must_use]
+    pub fn color_format(&self) -> wgpu::TextureFormat {
+        self.color_format
     }
 
     /// Draws the shaded view with its sky at [`SMOOTH_SAMPLES`] samples per
@@ -491,39 +651,56 @@ impl Gpu {
         self.multisampling
     }
 
-    /// A configuration for presenting to `surface` at `size`.
+    /// Whether the frame's draws go through one indirect buffer (the
+    /// device has `INDIRECT_FIRST_INSTANCE`), else a draw per chunk range.
     #[must_use]
-    pub fn surface_config(&self, surface: &wgpu::Surface<'_>, size: (u32, u32)) -> Option<wgpu::SurfaceConfiguration> {
-        let (width, height) = self.window_size(size);
-        let mut config = surface.get_default_config(&self.adapter, width, height)?;
-        config.format = self.color_format;
-        config.present_mode = wgpu::PresentMode::AutoVsync;
-        Some(config)
+    pub fn indirect_draws(&self) -> bool {
+        self.indirect_draws
     }
 
-    /// Uploads a chunk mesh into the mesh arena; `key_id` colours the chunk
-    /// view.
+    /// Draws each chunk range with its own draw call even where indirect
+    /// draws are possible (for comparing the two; off by default).
+    pub fn set_direct_draws(&mut self, direct: bool) {
+        self.indirect_draws = !direct && self.device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
+    }
+
+    /// Copies a chunk's mesh into the renderer's buffers: the mesh maker
+    /// `nebula_world::stream::Streamer::update` asks for.
     #[must_use]
-    pub fn upload(&self, mesh: &RenderMesh, lod: u8, key_id: u32) -> GpuMesh {
+    pub fn upload(&self, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
+        // A small number from the key, for the chunk-colour view.
+        let id = key.x.wrapping_mul(73_856_093)
+            ^ key.y.wrapping_mul(19_349_663)
+            ^ (key.layer as u32).wrapping_mul(83_492_791)
+            ^ ((key.face as u32) << 3);
         let slot = self.arena.upload(&self.device, &self.queue, &mesh.vertices, &mesh.indices);
         GpuMesh {
             slot,
             surface_side_ranges: mesh.surface_side_ranges.clone(),
             skirt_ranges: mesh.skirt_ranges.clone(),
-            lod,
-            id: key_id % 4096,
+            lod: key.lod,
+            id: id % 4096,
             bytes: mesh.bytes(),
         }
     }
 
-    /// Draws `meshes`, each with its per-chunk draw constants, into
-    /// `target` (of `size`), clearing to the background.
-    pub fn draw(
+    /// Lets wgpu release the staging memory of this frame's uploads now
+    /// (call after a frame that uploaded; `render` does it too).
+    pub fn finish_uploads(&self) {
+        self.queue.submit([]);
+        let _ = self.device.poll(wgpu::PollType::Poll);
+    }
+
+    /// Writes the frame's constants and its draw list for a `size` target:
+    /// `meshes` with their per-chunk constants (what
+    /// `Streamer::drawn` gives). Then [`Self::terrain_pass`] /
+    /// [`Self::draw_terrain`] and [`Self::draw_atmosphere`], or all at once
+    /// with [`Self::render`].
+    pub fn prepare<'a>(
         &mut self,
-        target: &wgpu::TextureView,
-        size: (u32, u32),
         frame: &FrameParams,
-        meshes: &[(&GpuMesh, ChunkDraw)],
+        size: (u32, u32),
+        meshes: impl IntoIterator<Item = (&'a GpuMesh, ChunkDraw)>,
     ) {
         self.ensure_depth(size);
         let aspect = size.0 as f32 / size.1.max(1) as f32;
@@ -557,176 +734,267 @@ impl Gpu {
             terrain: [frame.voxel_size_and_relief.0 as f32, frame.voxel_size_and_relief.1 as f32, 0.0, 0.0],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
-        if meshes.len() as u64 > self.chunk_capacity {
-            let capacity = (meshes.len() as u64).next_power_of_two();
-            let (buffer, group) = chunk_ring(&self.device, &self.chunk_layout, capacity);
-            self.chunk_buffer = buffer;
-            self.chunk_group = group;
+        // One entry per chunk in the chunk table, read by the instance
+        // index; one indirect draw per drawn range (the surface but the
+        // sides looking away, and only the skirts lowered this frame),
+        // grouped by the page holding the mesh.
+        let mut chunk_uniforms = Vec::new();
+        let mut by_page: Vec<Vec<DrawIndexedIndirectArgs>> = Vec::new();
+        for (mesh, draw) in meshes {
+            let instance = chunk_uniforms.len() as u32;
+            chunk_uniforms.push(ChunkUniform {
+                info: [
+                    f32::from(mesh.lod),
+                    f32::from(frame.max_lod),
+                    mesh.id as f32,
+                    draw.parent_error.min(1e30) as f32,
+                ],
+                skirt_depths: draw.skirt_depths,
+            });
+            let Some(slot) = &mesh.slot else { continue };
+            if by_page.len() <= slot.page {
+                by_page.resize_with(slot.page + 1, Vec::new);
+            }
+            let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
+            for range in drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, &draw) {
+                by_page[slot.page].push(DrawIndexedIndirectArgs {
+                    index_count: range.len() as u32,
+                    instance_count: 1,
+                    first_index: first + range.start as u32,
+                    base_vertex: base,
+                    first_instance: instance,
+                });
+            }
+        }
+        if chunk_uniforms.len() as u64 > self.chunk_capacity {
+            let capacity = (chunk_uniforms.len() as u64).next_power_of_two();
+            (self.chunk_buffer, self.chunk_group) = chunk_ring(&self.device, &self.chunk_layout, capacity);
             self.chunk_capacity = capacity;
         }
-        let chunk_uniforms: Vec<ChunkUniform> = meshes
-            .iter()
-            .map(|(m, draw)| ChunkUniform {
-                info: [f32::from(m.lod), f32::from(frame.max_lod), m.id as f32, draw.parent_error.min(1e30) as f32],
-                skirt_depths: draw.skirt_depths,
-            })
-            .collect();
         if !chunk_uniforms.is_empty() {
             self.queue.write_buffer(&self.chunk_buffer, 0, bytemuck::cast_slice(&chunk_uniforms));
         }
-        let bg = frame.background.map(|c| f64::from(c) / 255.0);
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        // The shaded view with its sky is multisampled (resolved into
-        // `target` and the sea mask); anything else, crack checks and
-        // debug views, one sample per pixel.
+        self.draw_args.clear();
+        self.page_draws.clear();
+        for (page, draws) in by_page.into_iter().enumerate().filter(|(_, d)| !d.is_empty()) {
+            let first = self.draw_args.len() as u32;
+            self.page_draws.push(PageDraws { page, first, count: draws.len() as u32 });
+            self.draw_args.extend(draws);
+        }
+        if self.indirect_draws && !self.draw_args.is_empty() {
+            if self.draw_args.len() as u64 > self.indirect_capacity {
+                self.indirect_capacity = (self.draw_args.len() as u64).next_power_of_two();
+                self.indirect = indirect_buffer(&self.device, self.indirect_capacity);
+            }
+            self.queue.write_buffer(&self.indirect, 0, bytemuck::cast_slice(&self.draw_args));
+        }
+        // The shaded view with its sky is multisampled (resolved into the
+        // target and the sea mask); anything else, crack checks and debug
+        // views, one sample per pixel.
         let smooth = sky.is_some() && self.multisampling;
         if smooth {
             self.ensure_smooth_targets(size);
         }
-        let smooth_targets = self.smooth_targets.as_ref().filter(|_| smooth);
-        let pages = self.arena.lock();
-        {
-            let resolved_mask = self.depth.as_ref().map(|d| &d.sea_mask);
-            let (colour, colour_resolve) = match smooth_targets {
-                Some(t) => (&t.colour_view, Some(target)),
-                None => (target, None),
-            };
-            let (depth_view, sea_mask, mask_resolve) = match smooth_targets {
-                Some(t) => (Some(&t.depth_view), Some(&t.mask_view), resolved_mask),
-                None => (self.depth.as_ref().map(|d| &d.view), resolved_mask, None),
-            };
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("terrain pass"),
-                color_attachments: &[
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: colour,
-                        depth_slice: None,
-                        resolve_target: colour_resolve,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                    sea_mask.map(|view| wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: mask_resolve,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                ],
-                depth_stencil_attachment: depth_view.map(|view| wgpu::RenderPassDepthStencilAttachment {
-                    view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
-                    stencil_ops: None,
+        self.prepared = Some(Prepared {
+            smooth: smooth && self.smooth_targets.is_some(),
+            view: frame.view,
+            sky: sky.is_some(),
+            background: frame.background,
+        });
+    }
+
+    /// Begins the terrain pass over `target` (a view of
+    /// [`Self::color_format`] at the prepared size), clearing it to the
+    /// prepared background: colour, the renderer's sea mask and its
+    /// reversed-Z depth ([`DEPTH_FORMAT`]), multisampled and resolved into
+    /// `target` when the prepared frame is. Draw with
+    /// [`Self::draw_terrain`]; a game may draw its own geometry in it too
+    /// if its pipeline has the same two colour targets and depth.
+    ///
+    /// # Panics
+    /// Before [`Self::prepare`].
+    pub fn terrain_pass<'e>(
+        &'e self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        target: &'e wgpu::TextureView,
+    ) -> wgpu::RenderPass<'e> {
+        let prepared = self.prepared.expect("PlanetRenderer::prepare before terrain_pass");
+        let bg = prepared.background.map(|c| f64::from(c) / 255.0);
+        let smooth_targets = self.smooth_targets.as_ref().filter(|_| prepared.smooth);
+        let resolved_mask = self.depth.as_ref().map(|d| &d.sea_mask);
+        let (colour, colour_resolve) = match smooth_targets {
+            Some(t) => (&t.colour_view, Some(target)),
+            None => (target, None),
+        };
+        let (depth_view, sea_mask, mask_resolve) = match smooth_targets {
+            Some(t) => (Some(&t.depth_view), Some(&t.mask_view), resolved_mask),
+            None => (self.depth.as_ref().map(|d| &d.view), resolved_mask, None),
+        };
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("terrain pass"),
+            color_attachments: &[
+                Some(wgpu::RenderPassColorAttachment {
+                    view: colour,
+                    depth_slice: None,
+                    resolve_target: colour_resolve,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                        store: wgpu::StoreOp::Store,
+                    },
                 }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            let pipeline = match (&self.wire_pipeline, frame.view, &self.smooth) {
-                (_, _, Some(smooth)) if smooth_targets.is_some() => &smooth.terrain,
-                (Some(wire), DebugView::Wireframe, _) => wire,
-                _ => &self.pipeline,
-            };
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &self.frame_group, &[]);
-            // One table of per-chunk constants for the whole frame, read by
-            // the instance index, instead of a bind group change per chunk:
-            // on lavapipe every draw after a dynamic-offset rebind kept its
-            // own copy of the descriptor state, about 800 MB per frame of
-            // 8,000 chunks that was never given back.
-            pass.set_bind_group(1, &self.chunk_group, &[]);
-            let mut bound = None;
-            for (n, (mesh, draw)) in meshes.iter().enumerate() {
-                let Some(slot) = &mesh.slot else { continue };
-                // The surface but the sides looking away, and only the
-                // skirts lowered this frame.
-                let ranges = drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, draw);
-                if ranges.iter().all(std::ops::Range::is_empty) {
-                    continue;
-                }
-                let instance = n as u32;
-                if bound != Some(slot.page) {
-                    let page = pages.page(slot.page);
-                    pass.set_vertex_buffer(0, page.vertices.slice(..));
-                    pass.set_index_buffer(page.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    bound = Some(slot.page);
-                }
-                let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
-                for range in ranges.into_iter().filter(|r| !r.is_empty()) {
+                sea_mask.map(|view| wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: mask_resolve,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+            ],
+            depth_stencil_attachment: depth_view.map(|view| wgpu::RenderPassDepthStencilAttachment {
+                view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: self.timer.as_ref().and_then(|t| t.writes(0)),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    /// Records the prepared frame's terrain into `pass` (one begun by
+    /// [`Self::terrain_pass`]); returns the draw commands recorded: one
+    /// multi-draw-indirect per mesh buffer page, or one draw per chunk
+    /// range where the device cannot start an indirect draw at an instance.
+    pub fn draw_terrain(&self, pass: &mut wgpu::RenderPass<'_>) -> u32 {
+        let Some(prepared) = self.prepared else { return 0 };
+        let pipeline = match (&self.wire_pipeline, prepared.view, &self.smooth) {
+            (_, _, Some(smooth)) if prepared.smooth => &smooth.terrain,
+            (Some(wire), DebugView::Wireframe, _) => wire,
+            _ => &self.pipeline,
+        };
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.frame_group, &[]);
+        // One table of per-chunk constants for the whole frame, read by
+        // the instance index, instead of a bind group change per chunk:
+        // on lavapipe every draw after a dynamic-offset rebind kept its
+        // own copy of the descriptor state, about 800 MB per frame of
+        // 8,000 chunks that was never given back.
+        pass.set_bind_group(1, &self.chunk_group, &[]);
+        let pages = self.arena.lock();
+        let mut calls = 0;
+        for draws in &self.page_draws {
+            let page = pages.page(draws.page);
+            pass.set_vertex_buffer(0, page.vertices.slice(..));
+            pass.set_index_buffer(page.indices.slice(..), wgpu::IndexFormat::Uint32);
+            if self.indirect_draws {
+                pass.multi_draw_indexed_indirect(&self.indirect, u64::from(draws.first) * DRAW_ARGS_BYTES, draws.count);
+                calls += 1;
+            } else {
+                let first = draws.first as usize;
+                for args in &self.draw_args[first..first + draws.count as usize] {
                     pass.draw_indexed(
-                        first + range.start as u32..first + range.end as u32,
-                        base,
-                        instance..instance + 1,
+                        args.first_index..args.first_index + args.index_count,
+                        args.base_vertex,
+                        args.first_instance..args.first_instance + 1,
                     );
+                    calls += 1;
                 }
             }
         }
-        let sky_pass = match (smooth_targets, &self.smooth) {
+        calls
+    }
+
+    /// Begins the sky pass over `target`, keeping what the terrain pass
+    /// drew there, and draws sky, sea and haze from the terrain's depth
+    /// and sea mask (one full-screen triangle). Nothing when the prepared
+    /// frame has no atmosphere (a debug view, or over a background).
+    /// Returns the draw commands recorded.
+    pub fn draw_atmosphere(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView) -> u32 {
+        let Some(prepared) = self.prepared.filter(|p| p.sky) else { return 0 };
+        let sky_pass = match (self.smooth_targets.as_ref().filter(|_| prepared.smooth), &self.smooth) {
             (Some(targets), Some(pipelines)) => Some((&pipelines.sky, &targets.sky_group)),
             _ => self.depth.as_ref().map(|d| (&self.sky_pipeline, &d.sky_group)),
         };
-        if let (Some(_), Some((sky_pipeline, sky_group))) = (sky, sky_pass) {
-            // Sky, sea and haze over the terrain, from its depth: one
-            // full-screen triangle.
-            let mut pass = overlay_pass(&mut encoder, target, "sky pass");
-            pass.set_pipeline(sky_pipeline);
-            pass.set_bind_group(0, &self.frame_group, &[]);
-            pass.set_bind_group(1, sky_group, &[]);
-            pass.draw(0..3, 0..1);
+        let Some((sky_pipeline, sky_group)) = sky_pass else { return 0 };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("sky pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: self.timer.as_ref().and_then(|t| t.writes(1)),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(sky_pipeline);
+        pass.set_bind_group(0, &self.frame_group, &[]);
+        pass.set_bind_group(1, sky_group, &[]);
+        pass.draw(0..3, 0..1);
+        1
+    }
+
+    /// The whole frame: [`Self::prepare`], the terrain pass, the sky pass,
+    /// submitted. Returns (and keeps, [`Self::stats`]) its figures.
+    pub fn render<'a>(
+        &mut self,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        frame: &FrameParams,
+        meshes: impl IntoIterator<Item = (&'a GpuMesh, ChunkDraw)>,
+    ) -> FrameStats {
+        let start = Instant::now();
+        if let Some(timer) = self.timer.as_mut() {
+            // A frame is timed only once the last measurement is read.
+            timer.collect();
+            timer.timing = !timer.pending;
         }
-        drop(pages);
+        self.prepare(frame, size, meshes);
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let mut draw_calls = {
+            let mut pass = self.terrain_pass(&mut encoder, target);
+            self.draw_terrain(&mut pass)
+        };
+        draw_calls += self.draw_atmosphere(&mut encoder, target);
+        let timed = self.timer.as_mut().is_some_and(|t| t.resolve(&mut encoder));
         self.queue.submit([encoder.finish()]);
+        if timed && let Some(timer) = self.timer.as_mut() {
+            timer.map();
+        }
+        self.stats = FrameStats {
+            encode_ms: start.elapsed().as_secs_f64() * 1e3,
+            draw_calls,
+            chunk_draws: self.draw_args.len() as u32,
+            gpu_ms: self.timer.as_ref().and_then(|t| t.last_ms),
+        };
+        self.stats
     }
 
-    /// A window size this device can draw: each side clamped to 1 ..= its
-    /// largest texture side (a window larger than that is drawn at the
-    /// limit and stretched by the compositor, with a message).
-    #[must_use]
-    pub fn window_size(&self, (width, height): (u32, u32)) -> (u32, u32) {
-        let side = self.device.limits().max_texture_dimension_2d;
-        let clamped = (width.clamp(1, side), height.clamp(1, side));
-        if clamped.0 < width || clamped.1 < height {
-            eprintln!(
-                "nebula-demo: a {width}×{height} window is drawn at {}×{} (this GPU's limit)",
-                clamped.0, clamped.1
-            );
+    /// The figures of the last [`Self::render`], its GPU time included
+    /// once the GPU has finished it and the device has been polled (a
+    /// read-back waits for it; a window's next frame usually finds it).
+    pub fn stats(&mut self) -> FrameStats {
+        if let Some(timer) = self.timer.as_mut() {
+            timer.collect();
+            self.stats.gpu_ms = timer.last_ms;
         }
-        clamped
-    }
-
-    /// Checks that this device can draw a `size` image and read it back
-    /// (its largest texture side and buffer), so a request past the
-    /// limits is refused before any work, not as a panic inside wgpu.
-    ///
-    /// # Errors
-    /// [`GpuError::TooLarge`] naming the limit.
-    pub fn check_image_size(&self, (width, height): (u32, u32)) -> Result<(), GpuError> {
-        let limits = self.device.limits();
-        let too_large = |limit: String| Err(GpuError::TooLarge { width, height, limit });
-        let side = limits.max_texture_dimension_2d;
-        if width == 0 || height == 0 || width > side || height > side {
-            return too_large(format!("each side must be 1 to {side} pixels"));
-        }
-        let row = u64::from(width * 4).div_ceil(u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT))
-            * u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let bytes = row * u64::from(height);
-        if bytes > limits.max_buffer_size {
-            return too_large(format!(
-                "its read-back buffer of {bytes} bytes passes the {} byte limit",
-                limits.max_buffer_size
-            ));
-        }
-        Ok(())
+        self.stats
     }
 
     /// Bytes of GPU buffers held for chunk meshes (pages, used or not).
     #[must_use]
     pub fn mesh_buffer_bytes(&self) -> u64 {
         self.arena.lock().capacity_bytes()
+    }
+
+    /// The renderer's mesh buffers (for tests of their reuse).
+    #[must_use]
+    pub fn arena(&self) -> &MeshArena {
+        &self.arena
     }
 
     fn ensure_depth(&mut self, size: (u32, u32)) {
@@ -828,6 +1096,106 @@ struct SmoothTargets {
     size: (u32, u32),
 }
 
+/// The terrain pass's depth and sea mask at one size, and the sky pass's
+/// bind group reading both.
+struct DepthTarget {
+    _texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    _mask: wgpu::Texture,
+    sea_mask: wgpu::TextureView,
+    size: (u32, u32),
+    sky_group: wgpu::BindGroup,
+}
+
+/// Timestamps at the start of the terrain pass and the end of the last
+/// pass, resolved into a buffer that is read back without waiting: a frame
+/// is timed only when the previous measurement has been read.
+struct GpuTimer {
+    queries: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// Set by the map callback once `readback` can be read.
+    mapped: Arc<AtomicBool>,
+    /// A measurement is on its way (`readback` is being mapped).
+    pending: bool,
+    /// This frame writes timestamps.
+    timing: bool,
+    period_ns: f64,
+    last_ms: Option<f64>,
+}
+
+impl GpuTimer {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
+        let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("frame timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let buffer = |label: &str, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            queries,
+            resolve: buffer("timestamps", wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
+            readback: buffer("timestamps read back", wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ),
+            mapped: Arc::new(AtomicBool::new(false)),
+            pending: false,
+            timing: false,
+            period_ns: f64::from(queue.get_timestamp_period()),
+            last_ms: None,
+        }
+    }
+
+    /// Reads a finished measurement, if one is mapped.
+    fn collect(&mut self) {
+        if self.pending && self.mapped.load(Ordering::Acquire) {
+            if let Ok(view) = self.readback.get_mapped_range(..) {
+                let stamps: [u64; 2] = bytemuck::pod_read_unaligned(&view[..16]);
+                self.last_ms = Some(stamps[1].saturating_sub(stamps[0]) as f64 * self.period_ns * 1e-6);
+            }
+            self.readback.unmap();
+            self.pending = false;
+            self.mapped.store(false, Ordering::Release);
+        }
+    }
+
+    /// The timestamp writes of pass 0 (the terrain: start and end) or 1
+    /// (the sky: its end), when this frame is timed.
+    fn writes(&self, pass: u8) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
+        self.timing.then_some(wgpu::RenderPassTimestampWrites {
+            query_set: &self.queries,
+            beginning_of_pass_write_index: (pass == 0).then_some(0),
+            end_of_pass_write_index: Some(1),
+        })
+    }
+
+    /// Resolves this frame's timestamps; whether it was timed.
+    fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) -> bool {
+        if self.timing {
+            encoder.resolve_query_set(&self.queries, 0..2, &self.resolve, 0);
+            encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
+        }
+        self.timing
+    }
+
+    /// Starts reading the resolved timestamps back (after the submit).
+    fn map(&mut self) {
+        let mapped = self.mapped.clone();
+        self.readback.map_async(wgpu::MapMode::Read, .., move |result| {
+            if result.is_ok() {
+                mapped.store(true, Ordering::Release);
+            }
+        });
+        self.pending = true;
+        self.timing = false;
+    }
+}
+
 /// The shader with the terrain's depth declared multisampled, for the sky
 /// pass over a multisampled terrain (`textureLoad`'s last argument is then
 /// the sample, 0, where it was the mip level, 0).
@@ -853,8 +1221,17 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
     (buffer, group)
 }
 
+fn indirect_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("indirect draws"),
+        size: capacity * DRAW_ARGS_BYTES,
+        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
 /// A render pass over `target` that keeps what is drawn there (no depth):
-/// the sky pass and the HUD draw over the terrain this way.
+/// a HUD draws over the planet this way.
 pub fn overlay_pass<'a>(
     encoder: &'a mut wgpu::CommandEncoder,
     target: &'a wgpu::TextureView,
@@ -873,111 +1250,6 @@ pub fn overlay_pass<'a>(
         occlusion_query_set: None,
         multiview_mask: None,
     })
-}
-
-/// The terrain pass's depth and sea mask at one size, and the sky pass's
-/// bind group reading both.
-struct DepthTarget {
-    _texture: wgpu::Texture,
-    view: wgpu::TextureView,
-    _mask: wgpu::Texture,
-    sea_mask: wgpu::TextureView,
-    size: (u32, u32),
-    sky_group: wgpu::BindGroup,
-}
-
-/// An offscreen colour target and the buffer it is read back through.
-pub struct Offscreen {
-    texture: wgpu::Texture,
-    /// View to draw into.
-    pub view: wgpu::TextureView,
-    size: (u32, u32),
-}
-
-impl Offscreen {
-    /// A `width` × `height` target.
-    ///
-    /// # Errors
-    /// [`GpuError::TooLarge`] past the device's limits
-    /// ([`Gpu::check_image_size`]).
-    pub fn new(gpu: &Gpu, size: (u32, u32)) -> Result<Self, GpuError> {
-        gpu.check_image_size(size)?;
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("offscreen colour"),
-            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: COLOR_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        Ok(Self { texture, view, size })
-    }
-
-    /// The image size.
-    #[must_use]
-    pub fn size(&self) -> (u32, u32) {
-        self.size
-    }
-
-    /// Copies the image back: RGBA8, row 0 at the top, no row padding.
-    ///
-    /// # Errors
-    /// [`GpuError::Readback`] if mapping fails.
-    pub fn read(&self, gpu: &Gpu) -> Result<Vec<u8>, GpuError> {
-        let (width, height) = self.size;
-        let unpadded = width * 4;
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded = unpadded.div_ceil(align) * align;
-        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("read-back"),
-            size: u64::from(padded) * u64::from(height),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder =
-            gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(height),
-                },
-            },
-            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-        );
-        gpu.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-            let _ = sender.send(result);
-        });
-        gpu.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let mut pixels = Vec::with_capacity((unpadded * height) as usize);
-        {
-            let mapped = buffer.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?;
-            for row in mapped.chunks_exact(padded as usize) {
-                pixels.extend_from_slice(&row[..unpadded as usize]);
-            }
-        }
-        buffer.unmap();
-        Ok(pixels)
-    }
 }
 
 /// The camera-relative view-projection (eye at the origin): right-handed
@@ -1001,5 +1273,43 @@ mod tests {
         let source = multisampled_depth_shader();
         assert!(source.contains("var terrain_depth: texture_depth_multisampled_2d;"));
         assert!(!source.contains("texture_depth_2d;"));
+    }
+
+    /// Under sea level over the sea is in the sea; the same depth under land
+    /// (a pit dug below sea level) is not, nor is anywhere above sea level.
+    #[test]
+    fn the_eye_is_in_the_sea_only_over_sea_bed() {
+        let planet = ProceduralPlanet::new(nebula_voxel::PlanetSettings::small(7)).expect("valid planet");
+        let radius = planet.settings().radius;
+        let mut state = 3_u64;
+        let (mut sea, mut land) = (0, 0);
+        for _ in 0..400 {
+            let d = DVec3::new(
+                nebula_math::unit_random(&mut state) - 0.5,
+                nebula_math::unit_random(&mut state) - 0.5,
+                nebula_math::unit_random(&mut state) - 0.5,
+            )
+            .normalize();
+            let under = eye_in_sea(&planet, d * (radius - 2.0));
+            if planet.height_at(d) < 0.0 {
+                sea += 1;
+                assert!(under, "{d}: under the sea but not in it");
+            } else {
+                land += 1;
+                assert!(!under, "{d}: in a pit under land but in the sea");
+            }
+            assert!(!eye_in_sea(&planet, d * (radius + 2.0)), "above sea level");
+        }
+        assert!(sea > 20 && land > 20, "{sea} over sea, {land} over land");
+    }
+
+    #[test]
+    fn debug_views_parse_by_name() {
+        for (name, view) in DebugView::ALL {
+            assert_eq!(name.parse::<DebugView>(), Ok(view));
+            assert_eq!(name.to_uppercase().parse::<DebugView>(), Ok(view));
+        }
+        let error = "shiny".parse::<DebugView>().expect_err("no such view");
+        assert!(error.contains("wireframe"), "{error}");
     }
 }

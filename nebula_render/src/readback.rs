@@ -1,0 +1,99 @@
+//! An offscreen colour target read back to the CPU: headless pictures,
+//! screenshots, image tests.
+
+use crate::context::GpuContext;
+use crate::renderer::{COLOR_FORMAT, RenderError};
+
+/// An offscreen colour target and the buffer it is read back through.
+pub struct Offscreen {
+    texture: wgpu::Texture,
+    /// View to draw into.
+    pub view: wgpu::TextureView,
+    size: (u32, u32),
+}
+
+impl Offscreen {
+    /// A `width` × `height` target.
+    ///
+    /// # Errors
+    /// [`RenderError::TooLarge`] past the device's limits
+    /// ([`GpuContext::check_image_size`]).
+    pub fn new(gpu: &GpuContext, size: (u32, u32)) -> Result<Self, RenderError> {
+        gpu.check_image_size(size)?;
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("offscreen colour"),
+            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        Ok(Self { texture, view, size })
+    }
+
+    /// The image size.
+    #[must_use]
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// Copies the image back: RGBA8, row 0 at the top, no row padding.
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`] if mapping fails.
+    pub fn read(&self, gpu: &GpuContext) -> Result<Vec<u8>, RenderError> {
+        let (width, height) = self.size;
+        let unpadded = width * 4;
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded = unpadded.div_ceil(align) * align;
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size: u64::from(padded) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            let _ = sender.send(result);
+        });
+        gpu.device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| RenderError::Readback(e.to_string()))?
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let mut pixels = Vec::with_capacity((unpadded * height) as usize);
+        {
+            let mapped = buffer.get_mapped_range(..).map_err(|e| RenderError::Readback(e.to_string()))?;
+            for row in mapped.chunks_exact(padded as usize) {
+                pixels.extend_from_slice(&row[..unpadded as usize]);
+            }
+        }
+        buffer.unmap();
+        Ok(pixels)
+    }
+}
