@@ -261,13 +261,17 @@ impl PlanetApp {
     /// [`PlanetApp::keep_cpu_meshes`]), the frame constants and the lowest
     /// ground under them.
     #[must_use]
-    pub fn drawn_geometry(&self) -> crate::crack::DrawnGeometry<'_> {
+    pub fn drawn_geometry(&self) -> nebula_render::crack::DrawnGeometry<'_> {
         let drawn = self
             .streamer()
             .drawn()
             .filter_map(|(_, chunk, draw)| chunk.cpu.as_ref().map(|mesh| (mesh, draw)))
             .collect();
-        crate::crack::DrawnGeometry { drawn, frame: self.frame_draw(), sentinel_radius: self.view_min_surface_radius() }
+        nebula_render::crack::DrawnGeometry {
+            drawn,
+            frame: self.frame_draw(),
+            sentinel_radius: self.view_min_surface_radius(),
+        }
     }
 
     /// Figures of what the draw list shows.

@@ -14,7 +14,7 @@ use nebula_render::DebugView;
 use nebula_render::context::GpuContext;
 use nebula_render::readback::Offscreen;
 
-use crate::crack::CrackCount;
+use nebula_render::crack::CrackCount;
 
 /// One picture to take.
 #[derive(Clone, Debug)]
@@ -304,7 +304,7 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
     let draw_ms = started.elapsed().as_secs_f64() * 1e3;
     let started = Instant::now();
     let cracks = match shot.background {
-        Some(background) => crate::crack::count_cracks(
+        Some(background) => nebula_render::crack::count_cracks(
             &rgba,
             shot.size,
             background,

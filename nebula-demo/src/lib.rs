@@ -4,7 +4,7 @@
 //! A thin client of the libraries: [`app`] is the bevy_ecs world holding
 //! `nebula_world`'s streamer, drawing through `nebula_render`'s
 //! `PlanetRenderer`; [`headless`] renders a camera to an RGBA image and
-//! writes the report; [`crack`] is the crack oracle; [`flight`] flies a
+//! writes the report, crack pixels counted by `nebula_render::crack`; [`flight`] flies a
 //! keyframed path in real time and checks every frame; `main.rs` adds the
 //! window, input and the command line. No LOD, meshing or drawing logic
 //! lives here.
@@ -24,7 +24,6 @@
 
 pub mod app;
 pub mod commands;
-pub mod crack;
 pub mod flight;
 pub mod headless;
 pub mod hud;

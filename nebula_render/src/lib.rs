@@ -63,6 +63,7 @@
 
 pub mod arena;
 pub mod context;
+pub mod crack;
 pub mod readback;
 mod renderer;
 pub mod sun;

@@ -918,19 +918,7 @@ impl PlanetRenderer {
             _ => self.depth.as_ref().map(|d| (&self.sky_pipeline, &d.sky_group)),
         };
         let Some((sky_pipeline, sky_group)) = sky_pass else { return 0 };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("sky pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: self.timer.as_ref().and_then(|t| t.writes(1)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = keeping_pass(encoder, target, "sky pass", self.timer.as_ref().and_then(|t| t.writes(1)));
         pass.set_pipeline(sky_pipeline);
         pass.set_bind_group(0, &self.frame_group, &[]);
         pass.set_bind_group(1, sky_group, &[]);
@@ -1237,6 +1225,16 @@ pub fn overlay_pass<'a>(
     target: &'a wgpu::TextureView,
     label: &str,
 ) -> wgpu::RenderPass<'a> {
+    keeping_pass(encoder, target, label, None)
+}
+
+/// [`overlay_pass`], timed when `timestamp_writes` are given.
+fn keeping_pass<'a>(
+    encoder: &'a mut wgpu::CommandEncoder,
+    target: &'a wgpu::TextureView,
+    label: &str,
+    timestamp_writes: Option<wgpu::RenderPassTimestampWrites<'a>>,
+) -> wgpu::RenderPass<'a> {
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -1246,7 +1244,7 @@ pub fn overlay_pass<'a>(
             ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
         })],
         depth_stencil_attachment: None,
-        timestamp_writes: None,
+        timestamp_writes,
         occlusion_query_set: None,
         multiview_mask: None,
     })

@@ -14,12 +14,12 @@ struct Frame {
     // Camera-relative clip → world (the sky pass's view rays).
     inv_view_proj: mat4x4<f32>,
     // x: planet (sea level) radius, y: eye radius, z: eye altitude, w: metres
-    // of water that dim what is under them by a factor e (gpu::water_extinction).
+    // of water that dim what is under them by a factor e (nebula_render::water_extinction).
     planet: vec4<f32>,
-    // x: 1 where the eye is in the sea (gpu::FrameParams::eye_in_sea), y:
-    // metres of water that hide what lies under them (gpu::sea_hiding_depth).
+    // x: 1 where the eye is in the sea (nebula_render::FrameParams::eye_in_sea), y:
+    // metres of water that hide what lies under them (nebula_render::sea_hiding_depth).
     sea: vec4<f32>,
-    // xyz: the eye's world position modulo w (gpu::TINT_PERIOD).
+    // xyz: the eye's world position modulo w (renderer::TINT_PERIOD).
     tint_origin: vec4<f32>,
     // x: LOD-0 voxel edge, y: the planet's relief, metres.
     terrain: vec4<f32>,
@@ -182,7 +182,7 @@ fn value_noise(p: vec3<f32>, period: i32) -> f32 {
 }
 
 // Patches of lighter and darker ground, 16 m and 128 m across, fixed to the
-// world (gpu::TINT_PERIOD is a multiple of both) and faded out where they
+// world (renderer::TINT_PERIOD is a multiple of both) and faded out where they
 // would be smaller than a few pixels: what breaks up a field of one
 // material. x: brightness, y: the large patches alone.
 fn tint(relative: vec3<f32>) -> vec2<f32> {
@@ -254,7 +254,7 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     }
     var out: TerrainOut;
     out.colour = vec4<f32>(encode(base * light), 1.0);
-    // Sea bed deeper than the sea lets light through (gpu::sea_hiding_depth:
+    // Sea bed deeper than the sea lets light through (nebula_render::sea_hiding_depth:
     // twelve extinction lengths) is never seen, and the streamer may draw
     // it coarse (nebula_world::stream::OpaqueSea). It gets one deep-water
     // colour, so that a pixel only partly over it (an edge, multisampled)

@@ -3,7 +3,7 @@
 //! The "renderer" here keeps counts instead of GPU buffers, so the example
 //! runs anywhere; a real one uploads `RenderMesh::vertices` / `indices` in
 //! its `upload` function and draws `Streamer::drawn()` each frame with the
-//! `nebula_meshing::RenderVertex` shader rules (see `nebula-demo`). The
+//! `nebula_meshing::RenderVertex` shader rules (`nebula_render` does all this). The
 //! camera flies from orbit down to 30 m over the ground; every second the
 //! example prints what would be drawn.
 //!

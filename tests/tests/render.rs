@@ -1,6 +1,6 @@
 //! Headless renders through the demo's wgpu renderer (Mesa's lavapipe on a
 //! machine with no GPU) over a sentinel background, checked by the crack
-//! oracle (`nebula_demo::crack`): a background pixel is a crack if its ray
+//! oracle (`nebula_render::crack`): a background pixel is a crack if its ray
 //! meets the sphere of the lowest ground under the chunks drawn, or hits a
 //! triangle that frame drew.
 //!
@@ -406,7 +406,7 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
     let blank = [SENTINEL[0], SENTINEL[1], SENTINEL[2], 255].repeat((SIZE.0 * SIZE.1) as usize);
     let camera = shot_view(&view).expect("view").camera;
     let count =
-        nebula_demo::crack::count_cracks(&blank, SIZE, SENTINEL, &camera, view.fov_y_degrees, &app.drawn_geometry());
+        nebula_render::crack::count_cracks(&blank, SIZE, SENTINEL, &camera, view.fov_y_degrees, &app.drawn_geometry());
     println!("blank frame: {count:?}");
     assert!(count.geometry_cracks > 0, "the geometry rule must see drawn terrain above the sentinel sphere");
     let covered = on.rgba.chunks_exact(4).filter(|p| p[..3] != SENTINEL).count();
