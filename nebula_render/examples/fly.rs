@@ -3,7 +3,8 @@
 //! `PlanetRenderer` drawing what the streamer chose, once a frame. The
 //! camera flies a circle around the small planet (2 km radius), coming
 //! down from 3 km to 40 m over the ground; `earth` as the first argument
-//! flies over an Earth-sized planet instead. Close the window to quit.
+//! flies over an Earth-sized planet instead. Once every 60 frames it
+//! prints what it drew. Close the window to quit.
 //!
 //! Run: `cargo run --release -p nebula_render --example fly [earth]`
 
@@ -37,13 +38,14 @@ struct Flying {
 struct App {
     settings: PlanetSettings,
     started: Instant,
+    frames: u64,
     flying: Option<Flying>,
 }
 
 impl App {
     /// The camera `t` seconds into the flight: once round the planet in
     /// two minutes, from 3 km up down to 40 m over the ground in the first
-    /// 30 s, looking ahead and a little down.
+    /// 30 s, looking ahead over the horizon.
     fn camera(&self, planet: &ProceduralPlanet, aspect: f64) -> Camera {
         let t = self.started.elapsed().as_secs_f64();
         let angle = t * std::f64::consts::TAU / 120.0;
@@ -51,7 +53,9 @@ impl App {
         let ahead = DVec3::new(-angle.sin(), 0.0, angle.cos());
         let altitude = 40.0 + 2960.0 * (1.0 - (t / 30.0).min(1.0)).powi(2);
         let ground = planet.surface_point(up).length().max(planet.layout().sphere().radius());
-        let forward = (ahead - up * ahead.dot(up)).normalize() - up * 0.25;
+        // Down past the horizon: the horizon dips more the higher the eye.
+        let pitch = (ground / (ground + altitude)).acos() + 0.15;
+        let forward = (ahead - up * ahead.dot(up)).normalize() * pitch.cos() - up * pitch.sin();
         Camera { position: up * (ground + altitude), forward, up, aspect }
     }
 
@@ -107,11 +111,21 @@ impl App {
         let drawn = f.streamer.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw));
         let stats = f.renderer.render(&view, (width, height), &frame, drawn);
         f.gpu.queue.present(texture);
-        let figures = f.streamer.figures();
-        f.window.set_title(&format!(
-            "Nebula: fly | {} chunks, {} triangles, {} draw calls, {:.2} ms to encode",
-            figures.chunks, figures.triangles, stats.draw_calls, stats.encode_ms
-        ));
+        // Once a second, what was drawn: in the title and on stdout.
+        self.frames += 1;
+        if self.frames.is_multiple_of(60) {
+            let figures = f.streamer.figures();
+            let line = format!(
+                "{:.0} s: {} chunks, {} triangles, {} draw calls, {:.2} ms to encode",
+                self.started.elapsed().as_secs_f64(),
+                figures.chunks,
+                figures.triangles,
+                stats.draw_calls,
+                stats.encode_ms
+            );
+            println!("{line}");
+            f.window.set_title(&format!("Nebula: fly | {line}"));
+        }
         f.window.request_redraw();
     }
 }
@@ -153,7 +167,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some("earth") => PlanetSettings::earth(11),
         _ => PlanetSettings::small(7),
     };
-    let mut app = App { settings, started: Instant::now(), flying: None };
+    let mut app = App { settings, started: Instant::now(), frames: 0, flying: None };
     EventLoop::new()?.run_app(&mut app)?;
     Ok(())
 }
