@@ -153,8 +153,34 @@ pub struct LoadedChunk<H> {
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
-    fn bytes(&self) -> u64 {
-        self.handle.bytes() + self.cpu.as_ref().map_or(0, RenderMesh::bytes)
+    fn held(&self) -> Held {
+        let renderer_bytes = self.handle.bytes();
+        Held { chunks: 1, bytes: renderer_bytes + self.cpu.as_ref().map_or(0, RenderMesh::bytes), renderer_bytes }
+    }
+}
+
+/// What a column or the whole cache holds, kept up to date as chunks come
+/// and go: counting it over the cache each frame cost milliseconds once
+/// prefetching filled the cache with tens of thousands of chunks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Held {
+    chunks: usize,
+    /// Renderer and CPU copies.
+    bytes: u64,
+    renderer_bytes: u64,
+}
+
+impl Held {
+    fn add(&mut self, other: Held) {
+        self.chunks += other.chunks;
+        self.bytes += other.bytes;
+        self.renderer_bytes += other.renderer_bytes;
+    }
+
+    fn sub(&mut self, other: Held) {
+        self.chunks -= other.chunks;
+        self.bytes -= other.bytes;
+        self.renderer_bytes -= other.renderer_bytes;
     }
 }
 
@@ -162,7 +188,11 @@ impl<H: MeshHandle> LoadedChunk<H> {
 struct CachedColumn<H> {
     /// The radial layers that hold surface (a failed bounds query: none).
     layers: Vec<i32>,
+    /// Its meshes: changed only through the cache ([`MeshCache::insert`],
+    /// [`MeshCache::remove`], ...), which keeps `held` and the cache's
+    /// total with them.
     chunks: HashMap<i32, LoadedChunk<H>>,
+    held: Held,
     /// Frame it was last drawn or wanted in.
     last_used: u64,
     /// Its outermost wall planes, for [`WallPlanes::back_sides`].
@@ -177,7 +207,13 @@ impl<H: MeshHandle> CachedColumn<H> {
             Some(layers) => layers.collect(),
             None => voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default(),
         };
-        Self { layers, chunks: HashMap::default(), last_used: frame, walls: WallPlanes::of(voxels.layout(), column) }
+        Self {
+            layers,
+            chunks: HashMap::default(),
+            held: Held::default(),
+            last_used: frame,
+            walls: WallPlanes::of(voxels.layout(), column),
+        }
     }
 
     /// Every layer meshed, or awaited after an edit that added it to a
@@ -186,15 +222,13 @@ impl<H: MeshHandle> CachedColumn<H> {
     fn ready(&self, column: ChunkColumn, stale: &HashMap<ChunkKey, u64>) -> bool {
         self.layers.iter().all(|&layer| self.chunks.contains_key(&layer) || stale.contains_key(&column.chunk(layer)))
     }
-
-    fn bytes(&self) -> u64 {
-        self.chunks.values().map(LoadedChunk::bytes).sum()
-    }
 }
 
 /// Every chunk mesh held, by column, and the budget it is held to.
 pub struct MeshCache<H> {
     columns: HashMap<ChunkColumn, CachedColumn<H>>,
+    /// The sum of the columns' `held`.
+    held: Held,
     /// Keep a CPU copy of each mesh.
     keep_cpu: bool,
     /// Also mesh and keep what the LOD tree holds out of view (every leaf,
@@ -257,19 +291,86 @@ impl<H: MeshHandle> MeshCache<H> {
     /// Bytes the renderer holds for the meshes.
     #[must_use]
     pub fn renderer_bytes(&self) -> u64 {
-        self.columns.values().flat_map(|c| c.chunks.values()).map(|c| c.handle.bytes()).sum()
+        self.held.renderer_bytes
     }
 
     /// Chunk meshes held.
     #[must_use]
     pub fn chunks(&self) -> usize {
-        self.columns.values().map(|c| c.chunks.len()).sum()
+        self.held.chunks
     }
 
     /// Bytes of mesh data held (renderer and CPU copies).
     #[must_use]
     pub fn held_bytes(&self) -> u64 {
-        self.columns.values().map(CachedColumn::bytes).sum()
+        self.held.bytes
+    }
+
+    /// Holds `chunk` as layer `layer` of `column` (a column already in the
+    /// cache), in place of any mesh it had.
+    fn insert(&mut self, column: ChunkColumn, layer: i32, chunk: LoadedChunk<H>) {
+        let Some(cached) = self.columns.get_mut(&column) else { return };
+        let held = chunk.held();
+        if let Some(old) = cached.chunks.insert(layer, chunk) {
+            cached.held.sub(old.held());
+            self.held.sub(old.held());
+        }
+        cached.held.add(held);
+        self.held.add(held);
+    }
+
+    /// Drops the mesh of `key`, if held.
+    fn remove(&mut self, key: ChunkKey) {
+        let Some(cached) = self.columns.get_mut(&key.column()) else { return };
+        if let Some(old) = cached.chunks.remove(&key.layer) {
+            cached.held.sub(old.held());
+            self.held.sub(old.held());
+        }
+    }
+
+    /// Keeps only the meshes of `column` whose layer `keep` accepts.
+    fn retain_layers(&mut self, column: ChunkColumn, mut keep: impl FnMut(i32) -> bool) {
+        let Some(cached) = self.columns.get_mut(&column) else { return };
+        let mut dropped = Held::default();
+        cached.chunks.retain(|&layer, chunk| {
+            let kept = keep(layer);
+            if !kept {
+                dropped.add(chunk.held());
+            }
+            kept
+        });
+        cached.held.sub(dropped);
+        self.held.sub(dropped);
+    }
+
+    /// Keeps only the columns `keep` accepts.
+    fn retain_columns(&mut self, mut keep: impl FnMut(&ChunkColumn, &CachedColumn<H>) -> bool) {
+        let mut dropped = Held::default();
+        self.columns.retain(|column, cached| {
+            let kept = keep(column, cached);
+            if !kept {
+                dropped.add(cached.held);
+            }
+            kept
+        });
+        self.held.sub(dropped);
+    }
+
+    /// Drops `column` and its meshes.
+    fn remove_column(&mut self, column: ChunkColumn) {
+        if let Some(cached) = self.columns.remove(&column) {
+            self.held.sub(cached.held);
+        }
+    }
+
+    /// The totals counted afresh (for checking the running ones).
+    #[cfg(test)]
+    fn recount(&self) -> Held {
+        let mut held = Held::default();
+        for chunk in self.columns.values().flat_map(|c| c.chunks.values()) {
+            held.add(chunk.held());
+        }
+        held
     }
 }
 
@@ -607,6 +708,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             },
             cache: MeshCache {
                 columns: HashMap::default(),
+                held: Held::default(),
                 keep_cpu: false,
                 prefetch: true,
                 free_after_frames: 300,
@@ -773,6 +875,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         // Else the last frame's selection is drawn again (nothing it draws
         // was freed), never an empty one.
+        #[cfg(test)]
+        assert_eq!(self.cache.held, self.cache.recount(), "the cache's running totals");
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty
@@ -809,10 +913,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
             cached.layers = self.voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
             let layers = cached.layers.clone();
-            cached.chunks.retain(|layer, _| layers.contains(layer));
+            self.cache.retain_layers(column, |layer| layers.contains(&layer));
             if !drawn.contains(&column) {
-                for key in dirty.iter().filter(|key| key.column() == column) {
-                    cached.chunks.remove(&key.layer);
+                for &key in dirty.iter().filter(|key| key.column() == column) {
+                    self.cache.remove(key);
                 }
             }
         }
@@ -1002,7 +1106,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let (voxels, tree, frame) = (&*self.voxels, &self.tree, self.frame);
         let entry = self.cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, tree, column, frame));
         if entry.layers.contains(&key.layer) {
-            entry.chunks.insert(key.layer, loaded);
+            self.cache.insert(column, key.layer, loaded);
         }
         if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
             self.cache.stale.remove(&key);
@@ -1313,9 +1417,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let undrawn: Vec<ChunkKey> = cache.stale.keys().filter(|key| !set.contains(&key.column())).copied().collect();
         for key in undrawn {
             cache.stale.remove(&key);
-            if let Some(cached) = cache.columns.get_mut(&key.column()) {
-                cached.chunks.remove(&key.layer);
-            }
+            cache.remove(key);
         }
         for &key in cache.stale.keys() {
             jobs.push(Job { tier: Tier::View, priority: f64::MAX, key });
@@ -1416,7 +1518,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let keep = &self.keep;
         if frame.is_multiple_of(10) {
             let limit = cache.free_after_frames;
-            cache.columns.retain(|column, cached| {
+            cache.retain_columns(|column, cached| {
                 column.lod == max_lod || frame.saturating_sub(cached.last_used) <= limit || keep.contains(column)
             });
         }
@@ -1441,13 +1543,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 break;
             }
             if let Some(cached) = cache.columns.get(&column) {
-                chunks -= cached.chunks.len();
-                bytes -= cached.bytes();
+                chunks -= cached.held.chunks;
+                bytes -= cached.held.bytes;
                 freed.push(column);
             }
         }
         for column in freed {
-            cache.columns.remove(&column);
+            cache.remove_column(column);
         }
         self.held = (chunks, bytes);
     }
