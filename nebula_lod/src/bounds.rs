@@ -77,43 +77,96 @@ impl NodeBounds {
     }
 
     /// Whether the whole node is hidden behind the horizon of the sphere of
-    /// radius `occluder_radius` (the lowest surface anywhere). A point at
-    /// radius r is seen from distance d over that sphere iff its angle from
-    /// the camera's direction is at most acos(R/d) + acos(R/r); the node's
-    /// nearest point is at least `angle − angular_radius` away.
+    /// radius `occluder_radius` (the lowest surface anywhere), seen from
+    /// `camera` ([`Horizon::hides`]; a [`Horizon`] made once serves many
+    /// nodes).
     #[must_use]
     pub fn behind_horizon(&self, camera: DVec3, occluder_radius: f64) -> bool {
-        let d = camera.length();
-        if d <= occluder_radius || self.max_radius <= occluder_radius {
-            return false;
-        }
-        let limit = (occluder_radius / d).acos() + (occluder_radius / self.max_radius).acos();
-        let nearest = camera.angle_between(self.center_direction) - self.angular_radius;
-        nearest > limit
+        Horizon::new(camera, occluder_radius).hides(self)
     }
 
     /// Whether the box lies entirely outside the view frustum of `camera`
-    /// with vertical field of view `fov_y_degrees` (no near or far plane).
+    /// with vertical field of view `fov_y_degrees` (no near or far plane;
+    /// [`Frustum::excludes`], whose planes are worth making once for many
+    /// nodes).
     #[must_use]
     pub fn outside_frustum(&self, camera: &Camera, fov_y_degrees: f64) -> bool {
+        Frustum::new(camera, fov_y_degrees).excludes(self)
+    }
+}
+
+/// The horizon of a sphere (the lowest surface anywhere) seen from an eye:
+/// what of the angle test of [`NodeBounds::behind_horizon`] depends on the
+/// eye alone, computed once.
+#[derive(Clone, Copy, Debug)]
+pub struct Horizon {
+    eye: DVec3,
+    occluder_radius: f64,
+    /// acos(R / d): how far round the sphere the eye sees; `None` where the
+    /// eye is inside the sphere (it hides nothing).
+    eye_reach: Option<f64>,
+}
+
+impl Horizon {
+    /// The horizon of the sphere of radius `occluder_radius` from `eye`.
+    #[must_use]
+    pub fn new(eye: DVec3, occluder_radius: f64) -> Self {
+        let d = eye.length();
+        let eye_reach = (d > occluder_radius).then(|| (occluder_radius / d).acos());
+        Self { eye, occluder_radius, eye_reach }
+    }
+
+    /// Whether the whole node is hidden behind the horizon. A point at
+    /// radius r is seen from distance d over the sphere iff its angle from
+    /// the eye's direction is at most acos(R/d) + acos(R/r); the node's
+    /// nearest point is at least `angle − angular_radius` away.
+    #[must_use]
+    pub fn hides(&self, bounds: &NodeBounds) -> bool {
+        let Some(eye_reach) = self.eye_reach else { return false };
+        if bounds.max_radius <= self.occluder_radius {
+            return false;
+        }
+        let limit = eye_reach + (self.occluder_radius / bounds.max_radius).acos();
+        let nearest = self.eye.angle_between(bounds.center_direction) - bounds.angular_radius;
+        nearest > limit
+    }
+}
+
+/// A camera's view frustum: the inward normals of its four side planes
+/// through the eye (no near or far plane), made once for many boxes.
+#[derive(Clone, Copy, Debug)]
+pub struct Frustum {
+    eye: DVec3,
+    planes: [DVec3; 4],
+}
+
+impl Frustum {
+    /// The frustum of `camera` with vertical field of view `fov_y_degrees`.
+    #[must_use]
+    pub fn new(camera: &Camera, fov_y_degrees: f64) -> Self {
         let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
         let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
         let tan_x = tan_y * camera.aspect;
-        // Inward normals of the four side planes through the eye.
         let planes = [
             (forward * tan_x + right).normalize(),
             (forward * tan_x - right).normalize(),
             (forward * tan_y + up).normalize(),
             (forward * tan_y - up).normalize(),
         ];
-        planes.iter().any(|&n| {
+        Self { eye: camera.position, planes }
+    }
+
+    /// Whether `bounds`' box lies entirely outside: behind one plane.
+    #[must_use]
+    pub fn excludes(&self, bounds: &NodeBounds) -> bool {
+        self.planes.iter().any(|&n| {
             // The box corner furthest along the plane normal.
             let corner = DVec3::new(
-                if n.x >= 0.0 { self.max.x } else { self.min.x },
-                if n.y >= 0.0 { self.max.y } else { self.min.y },
-                if n.z >= 0.0 { self.max.z } else { self.min.z },
+                if n.x >= 0.0 { bounds.max.x } else { bounds.min.x },
+                if n.y >= 0.0 { bounds.max.y } else { bounds.min.y },
+                if n.z >= 0.0 { bounds.max.z } else { bounds.min.z },
             );
-            n.dot(corner - camera.position) < 0.0
+            n.dot(corner - self.eye) < 0.0
         })
     }
 }

@@ -39,7 +39,8 @@ use nebula_math::{DVec3, FaceEdge, ScreenSpace};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, MAX_LOD, VoxelSource};
 
 use crate::{
-    BalanceMode, Camera, ChunkLodContext, FaceDirection, LodError, LodSettings, NeighborLodRelation, NodeBounds,
+    BalanceMode, Camera, ChunkLodContext, FaceDirection, Frustum, Horizon, LodError, LodSettings, NeighborLodRelation,
+    NodeBounds,
 };
 
 /// What changed in one update, so a renderer re-meshes only that.
@@ -833,14 +834,14 @@ impl LodTree {
     /// [`LodError::BadCamera`] for NaN, infinite or degenerate camera data.
     pub fn cull(&mut self, camera: &Camera) -> Result<(), LodError> {
         camera.check()?;
-        let fov = self.settings.fov_y_degrees;
-        let occluder = self.min_surface_radius;
+        let frustum = Frustum::new(camera, self.settings.fov_y_degrees);
+        let horizon = Horizon::new(camera.position, self.min_surface_radius);
         let mut visible = Vec::new();
         let mut stack: Vec<ChunkColumn> =
             CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
         while let Some(column) = stack.pop() {
             let Some(node) = self.nodes.get(&column) else { continue };
-            if node.bounds.behind_horizon(camera.position, occluder) || node.bounds.outside_frustum(camera, fov) {
+            if horizon.hides(&node.bounds) || frustum.excludes(&node.bounds) {
                 continue;
             }
             if self.drawn_is_split(&column) {

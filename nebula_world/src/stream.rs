@@ -1205,9 +1205,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // where a coarse stand-in in front dips below that horizon, what
         // shows through is coarse, never a hole.
         let occluder = tree.horizon_occluder(voxels, eye);
-        let behind = |column: ChunkColumn| {
-            occluder.is_some_and(|r| tree.node_bounds(column).is_some_and(|b| b.behind_horizon(eye, r)))
-        };
+        let horizon = occluder.map(|r| nebula_lod::Horizon::new(eye, r));
+        let behind =
+            |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
         // The same for leaves under an opaque sea, seen from above it.
         let sea = self.sea.filter(|sea| eye.length() > sea.radius);
         if self.under_sea.len() > MAX_SEA_BED_MEMO {
