@@ -196,8 +196,21 @@ impl FlightReport {
             .max_by(|a, b| a.1.figures.crack_pixels.cmp(&b.1.figures.crack_pixels).then(b.0.cmp(&a.0)))
     }
 
+    /// Median, 95th percentile and largest of a per-frame figure over the
+    /// frames that have it (`null` where none has).
+    fn spread(&self, figure: impl Fn(&FlightFrame) -> Option<f64>) -> serde_json::Value {
+        let mut values: Vec<f64> = self.frames.iter().filter_map(figure).collect();
+        values.sort_by(f64::total_cmp);
+        let at = |q: f64| values.get(((values.len() as f64 * q) as usize).min(values.len().saturating_sub(1)));
+        match values.last() {
+            Some(max) => serde_json::json!({ "median": at(0.5), "p95": at(0.95), "max": max }),
+            None => serde_json::Value::Null,
+        }
+    }
+
     /// The report as JSON: per frame time, crack pixels, chunks drawn,
-    /// jobs in flight; and the worst frame.
+    /// jobs in flight, the frame's CPU and GPU figures; their spread over
+    /// the flight; the worst frame; the process's peak memory.
     #[must_use]
     pub fn json(&self) -> serde_json::Value {
         let frames: Vec<serde_json::Value> = self
@@ -234,6 +247,15 @@ impl FlightReport {
         serde_json::json!({
             "adapter": self.adapter,
             "first_frame_ms": self.first_frame_ms,
+            "peak_rss_bytes": crate::headless::peak_rss_bytes(),
+            "summary": {
+                "step_ms": self.spread(|f| Some(f.step_ms)),
+                "encode_ms": self.spread(|f| Some(f.figures.render.encode_ms)),
+                "gpu_ms": self.spread(|f| f.figures.render.gpu_ms),
+                "draw_calls": self.spread(|f| Some(f64::from(f.figures.render.draw_calls))),
+                "chunks": self.spread(|f| Some(f.figures.frame.chunks as f64)),
+                "upload_bytes": self.spread(|f| Some(f.figures.frame.times.upload_bytes as f64)),
+            },
             "max_stand_in_levels": coarsest,
             "frame_count": self.frames.len(),
             "worst_frame": worst,
@@ -318,6 +340,24 @@ pub fn fly(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The summary's median and 95th percentile are the flight's, taken
+    /// over the frames that have the figure.
+    #[test]
+    fn the_summary_spreads_each_figure_over_the_frames() {
+        let frame = |step_ms: f64, gpu_ms: Option<f64>| {
+            let mut figures = Figures::default();
+            figures.render.gpu_ms = gpu_ms;
+            FlightFrame { time_s: 0.0, wall_s: 0.0, figures, step_ms }
+        };
+        let frames = (1..=20).map(|n| frame(f64::from(n), (n > 10).then_some(2.0 * f64::from(n)))).collect();
+        let report = FlightReport { frames, first_frame_ms: 0.0, adapter: String::new() };
+        let summary = &report.json()["summary"];
+        assert_eq!(summary["step_ms"], serde_json::json!({ "median": 11.0, "p95": 20.0, "max": 20.0 }));
+        assert_eq!(summary["gpu_ms"], serde_json::json!({ "median": 32.0, "p95": 40.0, "max": 40.0 }));
+        let empty = FlightReport { frames: Vec::new(), first_frame_ms: 0.0, adapter: String::new() };
+        assert!(empty.json()["summary"]["step_ms"].is_null());
+    }
 
     #[test]
     fn keyframes_parse_interpolate_and_refuse_bad_input() {
