@@ -1,6 +1,8 @@
 //! Conservative bounds of a quadtree node: the patch of the cube face it
 //! covers, between the lowest and highest surface the voxel source allows.
 
+use std::f64::consts::FRAC_PI_2;
+
 use nebula_math::DVec3;
 use nebula_voxel::{CHUNK_SIZE, ChunkColumn, ChunkLayout, SurfaceBounds};
 
@@ -111,8 +113,18 @@ impl Horizon {
     /// The horizon of the sphere of radius `occluder_radius` from `eye`.
     #[must_use]
     pub fn new(eye: DVec3, occluder_radius: f64) -> Self {
+        Self::around(eye, 0.0, occluder_radius)
+    }
+
+    /// What is behind the horizon from every eye within `margin` metres of
+    /// `eye`: the eye's angle to a node can shrink by up to
+    /// asin(margin / d), and the eye can see as far round as from d +
+    /// margin.
+    #[must_use]
+    pub fn around(eye: DVec3, margin: f64, occluder_radius: f64) -> Self {
         let d = eye.length();
-        let eye_reach = (d > occluder_radius).then(|| (occluder_radius / d).acos());
+        let eye_reach = (d - margin > occluder_radius)
+            .then(|| (occluder_radius / (d + margin)).acos() + (margin / d).clamp(0.0, 1.0).asin());
         Self { eye, occluder_radius, eye_reach }
     }
 
@@ -140,20 +152,70 @@ pub struct Frustum {
     planes: [DVec3; 4],
 }
 
+/// How far a cull reaches past its camera, so that one cull serves every
+/// camera near it ([`Frustum::covers`]): its sides opened by `angle`
+/// radians, and its apex moved back so that every eye within `distance`
+/// metres is inside.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CullMargin {
+    /// Radians added to each side's half-angle.
+    pub angle: f64,
+    /// Metres the eye may move.
+    pub distance: f64,
+}
+
 impl Frustum {
     /// The frustum of `camera` with vertical field of view `fov_y_degrees`.
     #[must_use]
     pub fn new(camera: &Camera, fov_y_degrees: f64) -> Self {
+        Self::with_margin(camera, fov_y_degrees, CullMargin::default())
+    }
+
+    /// The frustum of `camera` opened by `margin`: it holds the frustum of
+    /// every camera [`Frustum::covers`] accepts.
+    #[must_use]
+    pub fn with_margin(camera: &Camera, fov_y_degrees: f64, margin: CullMargin) -> Self {
         let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
         let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
-        let tan_x = tan_y * camera.aspect;
+        let (half_x, half_y) = ((tan_y * camera.aspect).atan(), fov_y_degrees.to_radians() / 2.0);
+        let (tan_x, tan_y) = if margin.angle > 0.0 {
+            let open = |half: f64| (half + margin.angle).min(FRAC_PI_2 - 1e-6).tan();
+            (open(half_x), open(half_y))
+        } else {
+            (tan_y * camera.aspect, tan_y)
+        };
+        let (half_x, half_y) = (half_x + margin.angle, half_y + margin.angle);
         let planes = [
             (forward * tan_x + right).normalize(),
             (forward * tan_x - right).normalize(),
             (forward * tan_y + up).normalize(),
             (forward * tan_y - up).normalize(),
         ];
-        Self { eye: camera.position, planes }
+        // A ball of radius r around the eye is inside once the apex is
+        // r / sin(narrowest half-angle) behind it.
+        let back = if margin.distance > 0.0 { margin.distance / half_x.min(half_y).sin() } else { 0.0 };
+        Self { eye: camera.position - forward * back, planes }
+    }
+
+    /// Whether the whole frustum of `camera` (field of view
+    /// `fov_y_degrees`) lies inside this one: its eye inside, and the four
+    /// rays along its edges pointing inside (the frustum is the convex
+    /// hull of those rays, and this one is convex).
+    #[must_use]
+    pub fn covers(&self, camera: &Camera, fov_y_degrees: f64) -> bool {
+        if camera.check().is_err() {
+            return false;
+        }
+        let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
+        let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
+        let tan_x = tan_y * camera.aspect;
+        let edges = [
+            forward + right * tan_x + up * tan_y,
+            forward + right * tan_x - up * tan_y,
+            forward - right * tan_x + up * tan_y,
+            forward - right * tan_x - up * tan_y,
+        ];
+        self.planes.iter().all(|&n| n.dot(camera.position - self.eye) >= 0.0 && edges.iter().all(|&e| n.dot(e) >= 0.0))
     }
 
     /// Whether `bounds`' box lies entirely outside: behind one plane.

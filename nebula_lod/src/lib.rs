@@ -60,7 +60,7 @@ mod relation;
 mod settings;
 mod tree;
 
-pub use bounds::{Frustum, Horizon, NodeBounds};
+pub use bounds::{CullMargin, Frustum, Horizon, NodeBounds};
 pub use nebula_math::FaceDirection;
 pub use relation::{ChunkLodContext, NeighborLodRelation};
 pub use settings::{BalanceMode, Camera, LodError, LodSettings};

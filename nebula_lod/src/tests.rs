@@ -507,3 +507,53 @@ fn a_changed_view_refines_as_a_tree_made_for_it() {
     assert!(tree.set_view(f64::NAN, 400.0, 60.0).is_err());
     assert_eq!(tree.settings().fov_y_degrees, 60.0, "a refused view leaves the tree as it was");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// A cull made with a margin holds every leaf that any camera it
+    /// covers sees: culled again exactly for that camera, the visible
+    /// leaves are a subset. Cameras a little off (moved, turned, rolled)
+    /// are covered; a turn past the margin is not.
+    #[test]
+    fn a_cull_with_a_margin_holds_what_every_camera_it_covers_sees(
+        dir in direction(),
+        height in 20.0f64..3_000.0,
+        heading in direction(),
+        step in direction(),
+        moved in 0.0f64..1.0,
+        turn in -1.0f64..1.0,
+    ) {
+        let earth = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+        let settings = LodSettings { screen_height_px: 400.0, ..LodSettings::default() };
+        let mut tree = LodTree::new(&earth, settings).unwrap();
+        let camera = earth_camera(&earth, dir, height, heading);
+        tree.update(&earth, &camera).unwrap();
+        let margin = CullMargin { angle: 3f64.to_radians(), distance: 40.0 };
+        tree.cull_with_margin(&camera, margin).unwrap();
+        let wide: std::collections::HashSet<ChunkColumn> = tree.visible_leaves().iter().copied().collect();
+        // Moved up to the margin's distance, turned up to 2.5° about the
+        // up axis, rolled a little: covered.
+        let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
+        let angle = turn * 2.5f64.to_radians();
+        let near = Camera {
+            position: camera.position + step * (moved * margin.distance),
+            forward: forward * angle.cos() + right * angle.sin(),
+            up: up + right * 0.01 * turn,
+            aspect: camera.aspect,
+        };
+        prop_assert!(tree.cull_covers(&near), "a camera within the margin is not covered");
+        let mut exact = tree.clone();
+        exact.cull(&near).unwrap();
+        let missing: Vec<&ChunkColumn> = exact.visible_leaves().iter().filter(|c| !wide.contains(c)).collect();
+        prop_assert!(missing.is_empty(), "{} leaves seen but not in the cull with a margin: {:?}", missing.len(), &missing[..missing.len().min(4)]);
+        // Turned by twice the margin, or moved past it: not covered.
+        let far_turn = Camera { forward: forward * 0.1f64.cos() + right * 0.1f64.sin(), ..camera };
+        prop_assert!(!tree.cull_covers(&far_turn), "a turn of 5.7° past a 3° margin is covered");
+        let far_move = Camera { position: camera.position + step * (margin.distance * 1.01), ..camera };
+        prop_assert!(!tree.cull_covers(&far_move), "a move past the margin is covered");
+        // A changed tree is culled again before it is trusted.
+        tree.set_view(0.5, 400.0, 60.0).unwrap();
+        prop_assert!(!tree.cull_covers(&camera));
+    }
+}

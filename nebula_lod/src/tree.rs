@@ -39,8 +39,8 @@ use nebula_math::{DVec3, FaceEdge, ScreenSpace};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, MAX_LOD, VoxelSource};
 
 use crate::{
-    BalanceMode, Camera, ChunkLodContext, FaceDirection, Frustum, Horizon, LodError, LodSettings, NeighborLodRelation,
-    NodeBounds,
+    BalanceMode, Camera, ChunkLodContext, CullMargin, FaceDirection, Frustum, Horizon, LodError, LodSettings,
+    NeighborLodRelation, NodeBounds,
 };
 
 /// What changed in one update, so a renderer re-meshes only that.
@@ -103,6 +103,9 @@ pub struct LodTree {
     /// [`FaceEdge`]) and radial chunk layers.
     leaves: HashMap<ChunkColumn, ([NeighborLodRelation; 4], (i32, i32))>,
     visible: Vec<ChunkColumn>,
+    /// The camera and margin `visible` was culled for, while the tree has
+    /// not changed since.
+    culled: Option<(Camera, CullMargin)>,
     queue: BinaryHeap<Reverse<(u64, u8, ChunkColumn, u32)>>,
     odometer: f64,
     last_camera: Option<DVec3>,
@@ -135,6 +138,7 @@ impl LodTree {
             drawn_split: HashSet::default(),
             leaves: HashMap::default(),
             visible: Vec::new(),
+            culled: None,
             queue: BinaryHeap::new(),
             odometer: 0.0,
             last_camera: None,
@@ -186,6 +190,7 @@ impl LodTree {
         }
         self.screen = Self::budgeted_screen(&settings, self.layout.max_lod())?;
         self.settings = settings;
+        self.culled = None;
         let columns: Vec<ChunkColumn> = self.nodes.keys().copied().collect();
         self.queue.clear();
         for column in columns {
@@ -398,6 +403,9 @@ impl LodTree {
             }
         }
         self.stats.nodes_evaluated = evaluated;
+        if !changed.is_empty() {
+            self.culled = None;
+        }
         let restricted = self.settings.balance == BalanceMode::Restricted;
         if restricted || full || self.leaves.is_empty() {
             // Whole-tree path: the balance filter may move any leaf.
@@ -565,6 +573,7 @@ impl LodTree {
         source: &S,
         columns: impl IntoIterator<Item = ChunkColumn>,
     ) -> Result<Vec<ChunkKey>, LodError> {
+        self.culled = None;
         let mut covering = BTreeSet::new();
         for column in columns {
             let mut node = column;
@@ -833,9 +842,21 @@ impl LodTree {
     /// # Errors
     /// [`LodError::BadCamera`] for NaN, infinite or degenerate camera data.
     pub fn cull(&mut self, camera: &Camera) -> Result<(), LodError> {
+        self.cull_with_margin(camera, CullMargin::default())
+    }
+
+    /// [`LodTree::cull`] for every camera within `margin` of `camera`: the
+    /// leaves any of them could see (a cull made ahead, on another thread,
+    /// for where the camera is going; [`LodTree::cull_covers`] says
+    /// whether it holds for the camera that came).
+    ///
+    /// # Errors
+    /// [`LodError::BadCamera`].
+    pub fn cull_with_margin(&mut self, camera: &Camera, margin: CullMargin) -> Result<(), LodError> {
         camera.check()?;
-        let frustum = Frustum::new(camera, self.settings.fov_y_degrees);
-        let horizon = Horizon::new(camera.position, self.min_surface_radius);
+        self.culled = None;
+        let frustum = Frustum::with_margin(camera, self.settings.fov_y_degrees, margin);
+        let horizon = Horizon::around(camera.position, margin.distance, self.min_surface_radius);
         let mut visible = Vec::new();
         let mut stack: Vec<ChunkColumn> =
             CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
@@ -853,7 +874,21 @@ impl LodTree {
         visible.sort_unstable();
         self.stats.visible_leaves = visible.len();
         self.visible = visible;
+        self.culled = Some((*camera, margin));
         Ok(())
+    }
+
+    /// Whether the visible leaves hold every leaf `camera` sees: the last
+    /// cull's camera and margin cover it (its eye within the margin's
+    /// distance, its frustum inside the opened one) and the tree has not
+    /// changed since.
+    #[must_use]
+    pub fn cull_covers(&self, camera: &Camera) -> bool {
+        let fov = self.settings.fov_y_degrees;
+        self.culled.is_some_and(|(culled, margin)| {
+            culled.position.distance(camera.position) <= margin.distance
+                && Frustum::with_margin(&culled, fov, margin).covers(camera, fov)
+        })
     }
 }
 
