@@ -184,6 +184,10 @@ pub struct FlightReport {
     pub first_frame_ms: f64,
     /// The adapter.
     pub adapter: String,
+    /// Frames whose LOD tree was made ahead on the LOD thread, and frames
+    /// that updated it on the frame thread
+    /// (`Streamer::lod_thread_frames`).
+    pub lod_thread_frames: (u64, u64),
 }
 
 impl FlightReport {
@@ -248,6 +252,7 @@ impl FlightReport {
             "adapter": self.adapter,
             "first_frame_ms": self.first_frame_ms,
             "peak_rss_bytes": crate::headless::peak_rss_bytes(),
+            "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "on_the_frame_thread": self.lod_thread_frames.1 },
             "summary": {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
                 "encode_ms": self.spread(|f| Some(f.figures.render.encode_ms)),
@@ -334,7 +339,12 @@ pub fn fly(
         }
         frames.push(FlightFrame { time_s, wall_s, figures: picture.figures, step_ms });
     }
-    Ok(FlightReport { frames, first_frame_ms, adapter: app.gpu().adapter_name.clone() })
+    Ok(FlightReport {
+        frames,
+        first_frame_ms,
+        adapter: app.gpu().adapter_name.clone(),
+        lod_thread_frames: app.streamer().lod_thread_frames(),
+    })
 }
 
 #[cfg(test)]
@@ -351,11 +361,12 @@ mod tests {
             FlightFrame { time_s: 0.0, wall_s: 0.0, figures, step_ms }
         };
         let frames = (1..=20).map(|n| frame(f64::from(n), (n > 10).then_some(2.0 * f64::from(n)))).collect();
-        let report = FlightReport { frames, first_frame_ms: 0.0, adapter: String::new() };
+        let report = FlightReport { frames, first_frame_ms: 0.0, adapter: String::new(), lod_thread_frames: (0, 0) };
         let summary = &report.json()["summary"];
         assert_eq!(summary["step_ms"], serde_json::json!({ "median": 11.0, "p95": 20.0, "max": 20.0 }));
         assert_eq!(summary["gpu_ms"], serde_json::json!({ "median": 32.0, "p95": 40.0, "max": 40.0 }));
-        let empty = FlightReport { frames: Vec::new(), first_frame_ms: 0.0, adapter: String::new() };
+        let empty =
+            FlightReport { frames: Vec::new(), first_frame_ms: 0.0, adapter: String::new(), lod_thread_frames: (0, 0) };
         assert!(empty.json()["summary"]["step_ms"].is_null());
     }
 

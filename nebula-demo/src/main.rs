@@ -127,6 +127,10 @@ struct Args {
     /// makes a frame about three times slower.
     #[arg(long, value_enum, default_value_t = Multisampling::Auto)]
     msaa: Multisampling,
+    /// Make the LOD tree's update and cull ahead on a thread of their own
+    /// (`false`: on the frame thread, as before; for comparing).
+    #[arg(long, value_name = "BOOL", default_value_t = true, action = clap::ArgAction::Set)]
+    lod_thread: bool,
     /// A saved world (created if missing): its edits are drawn, picked and
     /// edited; `edit` saves into it.
     #[arg(long, value_name = "PATH")]
@@ -411,6 +415,7 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     set_multisampling(&mut app, args.msaa);
+    app.streamer_mut().0.set_lod_thread(args.lod_thread);
     if args.screenshot.is_none() && args.camera_pos.is_none() {
         // No camera given: an orbit-to-surface sequence.
         let dir = DVec3::new(0.35, 0.55, 0.76).normalize();
@@ -454,6 +459,7 @@ fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: 
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     app.set_draw_options(draw_options(args));
     set_multisampling(&mut app, args.msaa);
+    app.streamer_mut().0.set_lod_thread(args.lod_thread);
     let report = nebula_demo::flight::fly(&mut app, &flight, shot, args.fps, args.frames_dir.as_deref())?;
     let json = report.json();
     println!(

@@ -221,4 +221,8 @@ pub enum LodError {
         /// Radius below which everything is solid.
         min_surface_radius: f64,
     },
+    /// A cull was narrowed for a camera it does not cover
+    /// (`LodTree::narrow_cull`).
+    #[error("the last cull does not cover this camera: cull again")]
+    NotCovered,
 }

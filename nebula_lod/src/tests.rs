@@ -547,6 +547,17 @@ proptest! {
         exact.cull(&near).unwrap();
         let missing: Vec<&ChunkColumn> = exact.visible_leaves().iter().filter(|c| !wide.contains(c)).collect();
         prop_assert!(missing.is_empty(), "{} leaves seen but not in the cull with a margin: {:?}", missing.len(), &missing[..missing.len().min(4)]);
+        // Narrowed to the camera: still everything it sees, and no more
+        // than the wide cull.
+        let mut narrowed = tree.clone();
+        narrowed.narrow_cull(&near).unwrap();
+        let narrow: std::collections::HashSet<ChunkColumn> = narrowed.visible_leaves().iter().copied().collect();
+        prop_assert!(exact.visible_leaves().iter().all(|c| narrow.contains(c)), "narrowing lost a leaf in view");
+        prop_assert!(narrow.iter().all(|c| wide.contains(c)));
+        // A narrowed cull covers its camera alone.
+        let moved_on = Camera { position: near.position + step * 2.0, ..near };
+        let refused = matches!(narrowed.narrow_cull(&moved_on), Err(LodError::NotCovered));
+        prop_assert!(refused, "a narrowed cull was narrowed again for another camera");
         // Turned by twice the margin, or moved past it: not covered.
         let far_turn = Camera { forward: forward * 0.1f64.cos() + right * 0.1f64.sin(), ..camera };
         prop_assert!(!tree.cull_covers(&far_turn), "a turn of 5.7° past a 3° margin is covered");

@@ -878,6 +878,29 @@ impl LodTree {
         Ok(())
     }
 
+    /// Narrows the visible leaves of a cull that covers `camera`
+    /// ([`LodTree::cull_covers`]) to those `camera` itself may see: each
+    /// leaf's own frustum and horizon tests, no walk of the tree.
+    ///
+    /// # Errors
+    /// [`LodError::BadCamera`]; [`LodError::NotCovered`] when the last cull
+    /// does not cover `camera` (the visible leaves are unchanged then).
+    pub fn narrow_cull(&mut self, camera: &Camera) -> Result<(), LodError> {
+        camera.check()?;
+        if !self.cull_covers(camera) {
+            return Err(LodError::NotCovered);
+        }
+        let frustum = Frustum::new(camera, self.settings.fov_y_degrees);
+        let horizon = Horizon::new(camera.position, self.min_surface_radius);
+        let nodes = &self.nodes;
+        self.visible.retain(|column| {
+            nodes.get(column).is_some_and(|node| !horizon.hides(&node.bounds) && !frustum.excludes(&node.bounds))
+        });
+        self.stats.visible_leaves = self.visible.len();
+        self.culled = Some((*camera, CullMargin::default()));
+        Ok(())
+    }
+
     /// Whether the visible leaves hold every leaf `camera` sees: the last
     /// cull's camera and margin cover it (its eye within the margin's
     /// distance, its frustum inside the opened one) and the tree has not

@@ -54,6 +54,7 @@
 #[cfg(feature = "bevy")]
 pub mod ecs;
 mod error;
+mod lod_thread;
 mod store;
 pub mod stream;
 pub mod walk;

@@ -68,13 +68,14 @@ use std::time::Instant;
 // thread's time in a streaming view (keys are not attacker controlled).
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, LodError, LodSettings, LodTree, children, parent};
+use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, children, parent};
 use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
 };
 use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, VoxelSource};
 
+use crate::lod_thread::{LodThread, Outcome};
 use crate::panic_text;
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
@@ -662,6 +663,14 @@ pub struct Streamer<S, H> {
     finished: std::collections::VecDeque<MeshResult>,
     /// First failures not taken by the game yet.
     failures: Vec<MeshFailure>,
+    /// The LOD tree's update and cull made ahead for the next frame
+    /// (`None`: on the frame thread only, [`Streamer::set_lod_thread`]).
+    lod_thread: Option<LodThread<S>>,
+    /// Frames whose tree came from the LOD thread, and frames that had to
+    /// update and cull on the frame thread.
+    lod_frames: (u64, u64),
+    /// How far the camera moved in the frame before (for the prediction).
+    last_step: f64,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -737,7 +746,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             view_busy: true,
             finished: std::collections::VecDeque::new(),
             failures: Vec::new(),
+            lod_thread: None,
+            lod_frames: (0, 0),
+            last_step: 0.0,
         };
+        streamer.set_lod_thread(true);
         streamer.mesh_roots(upload)?;
         Ok(streamer)
     }
@@ -819,17 +832,65 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// budget. Never waits for meshing.
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
-        self.eye = camera;
+        let previous = std::mem::replace(&mut self.eye, camera);
         let start = Instant::now();
+        let step = previous.position.distance(camera.position);
+        // The tree made ahead for this frame, when its cull covers the
+        // camera that came; else the frame thread updates its own.
+        if self.take_lod_thread_tree(&camera) {
+            self.lod_frames.0 += 1;
+            self.lod_ok = true;
+        } else {
+            self.lod_frames.1 += u64::from(self.lod_thread.is_some());
+            self.update_tree(camera);
+        }
+        if let Some(thread) = self.lod_thread.as_mut()
+            && self.lod_ok
+        {
+            let (next, margin) = predict(&previous, &camera, self.last_step);
+            thread.ask(&self.voxels, next, margin);
+        }
+        self.last_step = step;
+        self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.collect(upload);
+        if self.lod_ok {
+            self.select();
+            self.free();
+        }
+        // Else the last frame's selection is drawn again (nothing it draws
+        // was freed), never an empty one.
+        #[cfg(test)]
+        assert_eq!(self.cache.held, self.cache.recount(), "the cache's running totals");
+    }
+
+    /// Takes the LOD thread's tree for this frame if its cull covers
+    /// `camera`; whether it did.
+    fn take_lod_thread_tree(&mut self, camera: &Camera) -> bool {
+        let Some(thread) = self.lod_thread.as_mut() else { return false };
+        let Some(Outcome::Tree { mut tree, changed, .. }) = thread.take() else { return false };
+        // Its cull, made with a margin, narrowed to this camera's view.
+        if tree.narrow_cull(camera).is_err() {
+            return false;
+        }
+        self.tree = *tree;
+        self.tree_changed |= changed;
+        self.culled_for = Some(*camera);
+        true
+    }
+
+    /// Updates and culls the frame thread's own tree for `camera`.
+    fn update_tree(&mut self, camera: Camera) {
         // The leaves in view depend on the camera and the tree alone: a
         // still camera over a settled tree need not walk it again. A panic
         // in the voxel source's bounds (a game's own) fails the update, not
         // the game.
+        let mut changed = false;
         let culled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             self.tree.update(&*self.voxels, &camera).and_then(|changes| {
                 let same_tree =
                     changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty();
                 self.tree_changed |= !same_tree;
+                changed = !same_tree;
                 if !(same_tree && self.culled_for == Some(camera)) {
                     self.culled_for = None;
                     self.tree.cull(&camera)?;
@@ -864,19 +925,35 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 {
                     self.tree = tree;
                     self.tree_changed = true;
+                    changed = true;
                 }
             }
         }
-        self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.collect(upload);
-        if self.lod_ok {
-            self.select();
-            self.free();
+        // The LOD thread goes on from the tree this frame made, not its own
+        // older one (on a cold start it would make the whole tree again
+        // while the next frame waits for it).
+        if changed && let Some(thread) = self.lod_thread.as_mut() {
+            thread.replace(&self.tree);
         }
-        // Else the last frame's selection is drawn again (nothing it draws
-        // was freed), never an empty one.
-        #[cfg(test)]
-        assert_eq!(self.cache.held, self.cache.recount(), "the cache's running totals");
+    }
+
+    /// Makes the LOD tree's update and cull ahead, on a thread of their
+    /// own, for the camera the last two frames' motion predicts, with a
+    /// margin around it (`true`, the default); a frame whose camera the
+    /// margin covers takes that tree and does no LOD work itself, others
+    /// update their own as with `false`. Returns whether the thread runs
+    /// (it may not start).
+    pub fn set_lod_thread(&mut self, on: bool) -> bool {
+        self.lod_thread = if on { LodThread::start(&self.tree).ok() } else { None };
+        self.lod_thread.is_some()
+    }
+
+    /// Frames whose LOD tree came from the LOD thread, and frames (with the
+    /// thread on) whose camera its margin did not cover, updated on the
+    /// frame thread.
+    #[must_use]
+    pub fn lod_thread_frames(&self) -> (u64, u64) {
+        self.lod_frames
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty
@@ -908,6 +985,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // A source that refuses a column leaves the tree's bounds old, never
         // the meshes: the error is returned once the rest is done.
         let refreshed = self.tree.refresh_bounds(&*self.voxels, columns.iter().copied());
+        if let Some(thread) = self.lod_thread.as_mut() {
+            thread.refresh(&self.voxels, columns.iter().copied().collect());
+        }
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         for &column in &columns {
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
@@ -1018,6 +1098,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if *self.tree.settings() != before {
             self.culled_for = None;
             self.tree_changed = true;
+            if let Some(thread) = self.lod_thread.as_mut() {
+                thread.set_view(threshold_px, screen_height_px, fov_y_degrees);
+            }
         }
         Ok(())
     }
@@ -1700,4 +1783,30 @@ pub enum StreamError {
     /// The meshing thread pool could not start.
     #[error("the meshing threads could not start: {0}")]
     Threads(String),
+}
+
+/// The camera of the next frame if it moves and turns as from `previous`
+/// to `current`, and the margin a cull for it needs to cover the camera
+/// that comes: 3° of turn and half the last step (at least a metre) of
+/// error. A step more than four times the one before (`last_step`, plus
+/// 10 m) is a jump (a teleport, a new view), not a motion to go on with:
+/// the camera is expected to stay.
+fn predict(previous: &Camera, current: &Camera, last_step: f64) -> (Camera, CullMargin) {
+    let step = current.position - previous.position;
+    if step.length() > 4.0 * last_step + 10.0 {
+        return (*current, CullMargin { angle: 3f64.to_radians(), distance: 1.0 });
+    }
+    let (before, now) = (previous.forward.normalize_or_zero(), current.forward.normalize_or_zero());
+    let turn = if before == nebula_math::DVec3::ZERO || now == nebula_math::DVec3::ZERO {
+        nebula_math::DQuat::IDENTITY
+    } else {
+        nebula_math::DQuat::from_rotation_arc(before, now)
+    };
+    let next = Camera {
+        position: current.position + step,
+        forward: turn * current.forward,
+        up: turn * current.up,
+        aspect: current.aspect,
+    };
+    (next, CullMargin { angle: 3f64.to_radians(), distance: (0.5 * step.length()).max(1.0) })
 }
