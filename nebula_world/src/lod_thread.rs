@@ -77,6 +77,11 @@ impl<S: VoxelSource + Send + Sync + 'static> LodThread<S> {
         }
     }
 
+    /// Whether an update was asked for and its outcome not taken.
+    pub(crate) fn in_flight(&self) -> bool {
+        self.in_flight
+    }
+
     /// The outcome of the update asked for, waiting for it if it has not
     /// come; `None` when none was asked for, or the copy predates a
     /// tree-changing request.

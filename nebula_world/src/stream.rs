@@ -837,12 +837,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let step = previous.position.distance(camera.position);
         // The tree made ahead for this frame, when its cull covers the
         // camera that came; else the frame thread updates its own.
-        if self.take_lod_thread_tree(&camera) {
-            self.lod_frames.0 += 1;
-            self.lod_ok = true;
-        } else {
-            self.lod_frames.1 += u64::from(self.lod_thread.is_some());
-            self.update_tree(camera);
+        match self.take_lod_thread_tree(&camera) {
+            Some(true) => {
+                self.lod_frames.0 += 1;
+                self.lod_ok = true;
+            }
+            missed => {
+                self.lod_frames.1 += u64::from(missed.is_some());
+                self.update_tree(camera);
+            }
         }
         if let Some(thread) = self.lod_thread.as_mut()
             && self.lod_ok
@@ -864,18 +867,23 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 
     /// Takes the LOD thread's tree for this frame if its cull covers
-    /// `camera`; whether it did.
-    fn take_lod_thread_tree(&mut self, camera: &Camera) -> bool {
-        let Some(thread) = self.lod_thread.as_mut() else { return false };
-        let Some(Outcome::Tree { mut tree, changed, .. }) = thread.take() else { return false };
+    /// `camera`: `Some(true)` if it did, `Some(false)` if one was asked for
+    /// and cannot serve (not covered, failed, or made before a change),
+    /// `None` if none was asked for (no thread, or a still camera).
+    fn take_lod_thread_tree(&mut self, camera: &Camera) -> Option<bool> {
+        let thread = self.lod_thread.as_mut()?;
+        if !thread.in_flight() {
+            return None;
+        }
+        let Some(Outcome::Tree { mut tree, changed, .. }) = thread.take() else { return Some(false) };
         // Its cull, made with a margin, narrowed to this camera's view.
         if tree.narrow_cull(camera).is_err() {
-            return false;
+            return Some(false);
         }
         self.tree = *tree;
         self.tree_changed |= changed;
         self.culled_for = Some(*camera);
-        true
+        Some(true)
     }
 
     /// Updates and culls the frame thread's own tree for `camera`.
@@ -948,9 +956,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.lod_thread.is_some()
     }
 
-    /// Frames whose LOD tree came from the LOD thread, and frames (with the
-    /// thread on) whose camera its margin did not cover, updated on the
-    /// frame thread.
+    /// Frames whose LOD tree came from the LOD thread, and frames whose
+    /// tree it made could not serve (the camera jumped or turned past the
+    /// margin, the update failed, or an edit came in between), updated on
+    /// the frame thread. A still camera asks for nothing and counts in
+    /// neither.
     #[must_use]
     pub fn lod_thread_frames(&self) -> (u64, u64) {
         self.lod_frames

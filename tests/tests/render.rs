@@ -294,10 +294,12 @@ fn earth_flight_across_a_cube_edge_at_300_m_s_is_crack_free_in_every_frame() {
     let flight = ground_flight(&settings, start, across, 300.0, 80.0, 20.0, 3.0);
     let report = check_flight("earth-edge-flight", &settings, &flight, 8.0);
     // The frames checked are those of trees made ahead on the LOD thread
-    // (a cull with a margin around a predicted camera), bar a few.
-    let (ahead, on_frame) = report.lod_thread_frames;
-    println!("earth-edge-flight: {ahead} frames made ahead, {on_frame} on the frame thread");
-    assert!(ahead >= 3 * on_frame, "{ahead} frames made ahead, {on_frame} on the frame thread");
+    // (a cull with a margin around a predicted camera), bar the first two:
+    // the still start asks for none, the step off it is a jump.
+    let (ahead, missed) = report.lod_thread_frames;
+    let frames = report.frames.len() as u64;
+    println!("earth-edge-flight: {ahead} of {frames} frames made ahead, {missed} missed");
+    assert!(ahead + 2 >= frames && missed <= 1, "{ahead} of {frames} frames made ahead, {missed} missed");
 }
 
 #[test]
