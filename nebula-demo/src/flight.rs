@@ -185,7 +185,7 @@ pub struct FlightReport {
     /// The adapter.
     pub adapter: String,
     /// Frames whose LOD tree was made ahead on the LOD thread, and frames
-    /// that updated it on the frame thread
+    /// whose tree made ahead could not serve
     /// (`Streamer::lod_thread_frames`).
     pub lod_thread_frames: (u64, u64),
 }
@@ -252,7 +252,7 @@ impl FlightReport {
             "adapter": self.adapter,
             "first_frame_ms": self.first_frame_ms,
             "peak_rss_bytes": crate::headless::peak_rss_bytes(),
-            "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "on_the_frame_thread": self.lod_thread_frames.1 },
+            "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "missed": self.lod_thread_frames.1 },
             "summary": {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
                 "encode_ms": self.spread(|f| Some(f.figures.render.encode_ms)),
