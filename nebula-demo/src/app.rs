@@ -248,12 +248,10 @@ impl PlanetApp {
             frame.background = background;
             frame.atmosphere = None;
         }
-        let stats = self.world.resource_scope(|world, mut gpu: Mut<Gpu>| {
+        self.world.resource_scope(|world, mut gpu: Mut<Gpu>| {
             let drawn = world.resource::<Stream>().0.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw));
             gpu.renderer.render(target, size, &frame, drawn)
-        });
-        self.streamer_mut().0.set_render_ms(stats.encode_ms);
-        stats
+        })
     }
 
     /// What the draw list draws, for the crack oracle: the meshes on the

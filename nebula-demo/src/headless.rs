@@ -393,7 +393,6 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
             "meshing": f.times.meshing_ms,
             "meshing_total": f.times.meshing_total_ms,
             "upload": f.times.upload_ms,
-            "render": f.times.render_ms,
         },
         "encode_ms": figures.render.encode_ms,
         "draw_calls": figures.render.draw_calls,

@@ -176,15 +176,16 @@ impl Frustum {
     #[must_use]
     pub fn with_margin(camera: &Camera, fov_y_degrees: f64, margin: CullMargin) -> Self {
         let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
-        let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
-        let (half_x, half_y) = ((tan_y * camera.aspect).atan(), fov_y_degrees.to_radians() / 2.0);
+        let half_y = fov_y_degrees.to_radians() / 2.0;
+        let half_x = (half_y.tan() * camera.aspect).atan();
+        // Without a margin, the camera's own tangents (not a round trip
+        // through atan and tan): the exact cull is unchanged.
+        let open = |half: f64| (half + margin.angle).min(FRAC_PI_2 - 1e-6);
         let (tan_x, tan_y) = if margin.angle > 0.0 {
-            let open = |half: f64| (half + margin.angle).min(FRAC_PI_2 - 1e-6).tan();
-            (open(half_x), open(half_y))
+            (open(half_x).tan(), open(half_y).tan())
         } else {
-            (tan_y * camera.aspect, tan_y)
+            (half_y.tan() * camera.aspect, half_y.tan())
         };
-        let (half_x, half_y) = (half_x + margin.angle, half_y + margin.angle);
         let planes = [
             (forward * tan_x + right).normalize(),
             (forward * tan_x - right).normalize(),
@@ -193,7 +194,7 @@ impl Frustum {
         ];
         // A ball of radius r around the eye is inside once the apex is
         // r / sin(narrowest half-angle) behind it.
-        let back = if margin.distance > 0.0 { margin.distance / half_x.min(half_y).sin() } else { 0.0 };
+        let back = if margin.distance > 0.0 { margin.distance / open(half_x.min(half_y)).sin() } else { 0.0 };
         Self { eye: camera.position - forward * back, planes }
     }
 

@@ -979,12 +979,6 @@ impl PlanetRenderer {
         self.arena.lock().capacity_bytes()
     }
 
-    /// The renderer's mesh buffers (for tests of their reuse).
-    #[must_use]
-    pub fn arena(&self) -> &MeshArena {
-        &self.arena
-    }
-
     fn ensure_depth(&mut self, size: (u32, u32)) {
         if self.depth.as_ref().is_some_and(|d| d.size == size) {
             return;

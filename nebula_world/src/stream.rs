@@ -569,8 +569,6 @@ pub struct StageTimes {
     /// Bytes of the meshes uploaded this frame (at most
     /// [`MeshCache::max_upload_bytes`], or one mesh).
     pub upload_bytes: u64,
-    /// Recording and submitting the draw (the renderer fills it in).
-    pub render_ms: f64,
 }
 
 /// What the draw list shows, for reports and HUDs.
@@ -1144,11 +1142,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         figures.held_bytes = self.cache.held_bytes();
         figures.chunks_held = self.cache.chunks();
         figures
-    }
-
-    /// Records the renderer's time for the frame (shown in the figures).
-    pub fn set_render_ms(&mut self, ms: f64) {
-        self.times.render_ms = ms;
     }
 
     /// The lowest surface radius anywhere: a camera must stay above it.
