@@ -173,6 +173,10 @@ pub struct FlightFrame {
     pub figures: Figures,
     /// Milliseconds the systems' step took (LOD, uploads, selection).
     pub step_ms: f64,
+    /// CPU milliseconds the frame thread spent in that step: `step_ms`
+    /// less the time it waited for a core (the meshing threads and a
+    /// software rasteriser share them on a small machine).
+    pub step_cpu_ms: f64,
 }
 
 /// What a flight showed.
@@ -235,6 +239,10 @@ impl FlightReport {
                     "jobs_in_flight": f.figures.frame.jobs_in_flight,
                     "prefetch_jobs": f.figures.frame.prefetch_jobs,
                     "step_ms": f.step_ms,
+                    "step_cpu_ms": f.step_cpu_ms,
+                    "lod_ms": f.figures.frame.times.lod_ms,
+                    "upload_ms": f.figures.frame.times.upload_ms,
+                    "select_ms": f.figures.frame.times.select_ms,
                     "upload_bytes": f.figures.frame.times.upload_bytes,
                     "draw_ms": f.figures.draw_ms,
                     "encode_ms": f.figures.render.encode_ms,
@@ -255,6 +263,10 @@ impl FlightReport {
             "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "missed": self.lod_thread_frames.1 },
             "summary": {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
+                "step_cpu_ms": self.spread(|f| Some(f.step_cpu_ms)),
+                "lod_ms": self.spread(|f| Some(f.figures.frame.times.lod_ms)),
+                "upload_ms": self.spread(|f| Some(f.figures.frame.times.upload_ms)),
+                "select_ms": self.spread(|f| Some(f.figures.frame.times.select_ms)),
                 "encode_ms": self.spread(|f| Some(f.figures.render.encode_ms)),
                 "gpu_ms": self.spread(|f| f.figures.render.gpu_ms),
                 "draw_calls": self.spread(|f| Some(f64::from(f.figures.render.draw_calls))),
@@ -329,15 +341,16 @@ pub fn fly(
         let shot = shot_at(time_s);
         let view = shot_view(&shot)?;
         app.set_view(view);
-        let stepped = Instant::now();
+        let (stepped, stepped_cpu) = (Instant::now(), cpu_time::ThreadTime::now());
         app.step();
         let step_ms = stepped.elapsed().as_secs_f64() * 1e3;
+        let step_cpu_ms = stepped_cpu.elapsed().as_secs_f64() * 1e3;
         let wall_s = start.elapsed().as_secs_f64();
         let picture = draw_frame(app, &shot, &view)?;
         if let Some(dir) = frames_dir {
             write_png(&dir.join(format!("{k:05}.png")), &picture.rgba, picture.size)?;
         }
-        frames.push(FlightFrame { time_s, wall_s, figures: picture.figures, step_ms });
+        frames.push(FlightFrame { time_s, wall_s, figures: picture.figures, step_ms, step_cpu_ms });
     }
     Ok(FlightReport {
         frames,
@@ -358,7 +371,7 @@ mod tests {
         let frame = |step_ms: f64, gpu_ms: Option<f64>| {
             let mut figures = Figures::default();
             figures.render.gpu_ms = gpu_ms;
-            FlightFrame { time_s: 0.0, wall_s: 0.0, figures, step_ms }
+            FlightFrame { time_s: 0.0, wall_s: 0.0, figures, step_ms, step_cpu_ms: step_ms }
         };
         let frames = (1..=20).map(|n| frame(f64::from(n), (n > 10).then_some(2.0 * f64::from(n)))).collect();
         let report = FlightReport { frames, first_frame_ms: 0.0, adapter: String::new(), lod_thread_frames: (0, 0) };

@@ -103,6 +103,10 @@ pub struct LodTree {
     /// [`FaceEdge`]) and radial chunk layers.
     leaves: HashMap<ChunkColumn, ([NeighborLodRelation; 4], (i32, i32))>,
     visible: Vec<ChunkColumn>,
+    /// The bounds of each of `visible`, alongside: the frame thread reads
+    /// them for every leaf (narrowing a cull, the horizon, priorities)
+    /// without a lookup in `nodes` each.
+    visible_bounds: Vec<NodeBounds>,
     /// The camera and margin `visible` was culled for, while the tree has
     /// not changed since.
     culled: Option<(Camera, CullMargin)>,
@@ -138,6 +142,7 @@ impl LodTree {
             drawn_split: HashSet::default(),
             leaves: HashMap::default(),
             visible: Vec::new(),
+            visible_bounds: Vec::new(),
             culled: None,
             queue: BinaryHeap::new(),
             odometer: 0.0,
@@ -333,6 +338,11 @@ impl LodTree {
     #[must_use]
     pub fn visible_leaves(&self) -> &[ChunkColumn] {
         &self.visible
+    }
+
+    /// [`LodTree::visible_leaves`] with the bounds of each.
+    pub fn visible_leaves_with_bounds(&self) -> impl Iterator<Item = (ChunkColumn, &NodeBounds)> {
+        self.visible.iter().copied().zip(&self.visible_bounds)
     }
 
     /// Updates the tree for `camera`, evaluating only the nodes whose
@@ -868,12 +878,12 @@ impl LodTree {
             if self.drawn_is_split(&column) {
                 stack.extend(children_of(column));
             } else {
-                visible.push(column);
+                visible.push((column, node.bounds));
             }
         }
-        visible.sort_unstable();
+        visible.sort_unstable_by_key(|(column, _)| *column);
         self.stats.visible_leaves = visible.len();
-        self.visible = visible;
+        (self.visible, self.visible_bounds) = visible.into_iter().unzip();
         self.culled = Some((*camera, margin));
         Ok(())
     }
@@ -892,11 +902,18 @@ impl LodTree {
         }
         let frustum = Frustum::new(camera, self.settings.fov_y_degrees);
         let horizon = Horizon::new(camera.position, self.min_surface_radius);
-        let nodes = &self.nodes;
-        self.visible.retain(|column| {
-            nodes.get(column).is_some_and(|node| !horizon.hides(&node.bounds) && !frustum.excludes(&node.bounds))
-        });
-        self.stats.visible_leaves = self.visible.len();
+        let mut kept = 0;
+        for n in 0..self.visible.len() {
+            let bounds = &self.visible_bounds[n];
+            if !horizon.hides(bounds) && !frustum.excludes(bounds) {
+                self.visible.swap(kept, n);
+                self.visible_bounds.swap(kept, n);
+                kept += 1;
+            }
+        }
+        self.visible.truncate(kept);
+        self.visible_bounds.truncate(kept);
+        self.stats.visible_leaves = kept;
         self.culled = Some((*camera, CullMargin::default()));
         Ok(())
     }

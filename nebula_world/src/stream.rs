@@ -192,7 +192,7 @@ struct CachedColumn<H> {
     /// Its meshes: changed only through the cache ([`MeshCache::insert`],
     /// [`MeshCache::remove`], ...), which keeps `held` and the cache's
     /// total with them.
-    chunks: HashMap<i32, LoadedChunk<H>>,
+    chunks: LayerMeshes<H>,
     held: Held,
     /// Frame it was last drawn or wanted in.
     last_used: u64,
@@ -210,7 +210,7 @@ impl<H: MeshHandle> CachedColumn<H> {
         };
         Self {
             layers,
-            chunks: HashMap::default(),
+            chunks: LayerMeshes::default(),
             held: Held::default(),
             last_used: frame,
             walls: WallPlanes::of(voxels.layout(), column),
@@ -221,7 +221,49 @@ impl<H: MeshHandle> CachedColumn<H> {
     /// column on screen (`stale`): the column's other meshes stand for it
     /// until it comes, as an edited chunk's old mesh does.
     fn ready(&self, column: ChunkColumn, stale: &HashMap<ChunkKey, u64>) -> bool {
-        self.layers.iter().all(|&layer| self.chunks.contains_key(&layer) || stale.contains_key(&column.chunk(layer)))
+        self.layers.iter().all(|&layer| self.chunks.contains(layer) || stale.contains_key(&column.chunk(layer)))
+    }
+}
+
+/// A column's meshes by radial layer: a handful at most, so a short list
+/// sorted by layer (a hash map per column cost a pointer chase and a hash
+/// on every readiness check of every drawn column, every frame).
+struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>);
+
+impl<H> Default for LayerMeshes<H> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<H> LayerMeshes<H> {
+    fn contains(&self, layer: i32) -> bool {
+        self.0.iter().any(|(l, _)| *l == layer)
+    }
+
+    /// Holds `chunk` as `layer`, returning the mesh it replaces.
+    fn insert(&mut self, layer: i32, chunk: LoadedChunk<H>) -> Option<LoadedChunk<H>> {
+        match self.0.binary_search_by_key(&layer, |(l, _)| *l) {
+            Ok(at) => Some(std::mem::replace(&mut self.0[at].1, chunk)),
+            Err(at) => {
+                self.0.insert(at, (layer, chunk));
+                None
+            }
+        }
+    }
+
+    fn remove(&mut self, layer: i32) -> Option<LoadedChunk<H>> {
+        let at = self.0.iter().position(|(l, _)| *l == layer)?;
+        Some(self.0.remove(at).1)
+    }
+
+    fn retain(&mut self, mut keep: impl FnMut(i32, &LoadedChunk<H>) -> bool) {
+        self.0.retain(|(layer, chunk)| keep(*layer, chunk));
+    }
+
+    /// The meshes, innermost layer first.
+    fn iter(&self) -> impl Iterator<Item = (i32, &LoadedChunk<H>)> {
+        self.0.iter().map(|(layer, chunk)| (*layer, chunk))
     }
 }
 
@@ -280,7 +322,7 @@ impl<H: MeshHandle> MeshCache<H> {
 
     /// Whether the mesh of `key` is held.
     fn holds(&self, key: ChunkKey) -> bool {
-        self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains_key(&key.layer))
+        self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer))
     }
 
     /// Room for prefetching, given what is held (chunks, bytes): under
@@ -323,7 +365,7 @@ impl<H: MeshHandle> MeshCache<H> {
     /// Drops the mesh of `key`, if held.
     fn remove(&mut self, key: ChunkKey) {
         let Some(cached) = self.columns.get_mut(&key.column()) else { return };
-        if let Some(old) = cached.chunks.remove(&key.layer) {
+        if let Some(old) = cached.chunks.remove(key.layer) {
             cached.held.sub(old.held());
             self.held.sub(old.held());
         }
@@ -333,7 +375,7 @@ impl<H: MeshHandle> MeshCache<H> {
     fn retain_layers(&mut self, column: ChunkColumn, mut keep: impl FnMut(i32) -> bool) {
         let Some(cached) = self.columns.get_mut(&column) else { return };
         let mut dropped = Held::default();
-        cached.chunks.retain(|&layer, chunk| {
+        cached.chunks.retain(|layer, chunk| {
             let kept = keep(layer);
             if !kept {
                 dropped.add(chunk.held());
@@ -368,7 +410,7 @@ impl<H: MeshHandle> MeshCache<H> {
     #[cfg(test)]
     fn recount(&self) -> Held {
         let mut held = Held::default();
-        for chunk in self.columns.values().flat_map(|c| c.chunks.values()) {
+        for (_, chunk) in self.columns.values().flat_map(|c| c.chunks.iter()) {
             held.add(chunk.held());
         }
         held
@@ -646,6 +688,8 @@ pub struct Streamer<S, H> {
     tree_changed: bool,
     /// What the last prefetch refresh keeps: freed last, never for age.
     keep: HashSet<ChunkColumn>,
+    /// The selection's sets, kept for their allocations.
+    scratch: SelectScratch,
     /// Chunks and bytes held at the end of the last update.
     held: (usize, u64),
     /// Chunks whose meshing failed and when to try them again.
@@ -737,6 +781,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             prefetched_at: 0,
             tree_changed: true,
             keep: HashSet::default(),
+            scratch: SelectScratch::default(),
             held: (0, 0),
             failed: HashMap::default(),
             lod_failures: 0,
@@ -1013,8 +1058,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if running.contains(key) {
                 self.cache.required.insert(*key, self.generation);
             }
-            if drawn.contains(&column)
-                && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains_key(&key.layer))
+            if drawn.contains(&column) && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains(key.layer))
             {
                 self.cache.stale.insert(*key, self.generation);
             }
@@ -1024,7 +1068,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // other layers meanwhile, not replaced by a coarse stand-in.
         for &column in columns.iter().filter(|column| drawn.contains(column)) {
             let Some(cached) = self.cache.columns.get(&column) else { continue };
-            for &layer in cached.layers.iter().filter(|layer| !cached.chunks.contains_key(layer)) {
+            for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
                 self.cache.stale.insert(column.chunk(layer), self.generation);
             }
         }
@@ -1076,7 +1120,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             .iter()
             .filter_map(|(column, draw)| self.cache.columns.get(column).map(|c| (*column, c, *draw)))
             .flat_map(|(column, cached, draw)| {
-                cached.chunks.iter().map(move |(&layer, chunk)| (column.chunk(layer), chunk, draw))
+                cached.chunks.iter().map(move |(layer, chunk)| (column.chunk(layer), chunk, draw))
             })
     }
 
@@ -1274,8 +1318,18 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let layout = voxels.layout();
         let max_lod = layout.max_lod();
         let eye = self.eye.position;
-        let mut drawn: Vec<ChunkColumn> = Vec::new();
-        let mut ancestors: HashSet<ChunkColumn> = HashSet::default();
+        // Sets reused from frame to frame: allocating and growing them anew
+        // each frame cost page faults and rehashing.
+        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen } =
+            std::mem::take(&mut self.scratch);
+        ancestors.clear();
+        hidden_tops.clear();
+        drawn_set.clear();
+        seen.clear();
+        // The drawn columns, with their wall planes and lowest surface
+        // radius (`None` behind the horizon) where the leaf loop has them
+        // at hand (`None`: looked up when the draw list is made).
+        let mut drawn: Vec<(ChunkColumn, Option<KnownDraw>)> = Vec::new();
         let mut wanted: Vec<ChunkColumn> = Vec::new();
         // A job's priority: its column's projected voxel edge (largest
         // first: coarse-first and nearest-first), the same for both tiers.
@@ -1294,6 +1348,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let horizon = occluder.map(|r| nebula_lod::Horizon::new(eye, r));
         let behind =
             |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
+        let bounds_behind = |bounds: &nebula_lod::NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
         // The same for leaves under an opaque sea, seen from above it.
         let sea = self.sea.filter(|sea| eye.length() > sea.radius);
         if self.under_sea.len() > MAX_SEA_BED_MEMO {
@@ -1315,10 +1370,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         }))
             })
         };
-        // What is drawn for a leaf: itself, or its coarsest ancestor
-        // hidden too (behind the horizon or under the sea), and why.
-        let mut drawn_for = |leaf: ChunkColumn| -> (ChunkColumn, Hidden) {
-            let hidden = if behind(leaf) {
+        // What is drawn for a leaf (with its bounds when known): itself, or
+        // its coarsest ancestor hidden too (behind the horizon or under the
+        // sea), and why.
+        let mut drawn_for = |leaf: ChunkColumn, bounds: Option<&nebula_lod::NodeBounds>| -> (ChunkColumn, Hidden) {
+            let hidden = if bounds.map_or_else(|| behind(leaf), bounds_behind) {
                 Hidden::BehindHorizon
             } else if sea_hides(leaf, false) {
                 Hidden::UnderSea
@@ -1332,9 +1388,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             (top, hidden)
         };
         let (mut behind_horizon, mut under_the_sea) = (0, 0);
-        let mut hidden_tops: HashSet<ChunkColumn> = HashSet::default();
-        for &leaf in tree.visible_leaves() {
-            let (leaf, hidden) = drawn_for(leaf);
+        for (leaf, bounds) in tree.visible_leaves_with_bounds() {
+            let (leaf, hidden) = drawn_for(leaf, Some(bounds));
             match hidden {
                 Hidden::No => {}
                 Hidden::BehindHorizon => behind_horizon += 1,
@@ -1343,14 +1398,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if hidden != Hidden::No && !hidden_tops.insert(leaf) {
                 continue;
             }
-            if cache.ready(leaf) {
-                if let Some(cached) = cache.columns.get_mut(&leaf) {
-                    // In use even when a stand-in covering it is drawn
-                    // instead (a sibling is not ready): never freed while
-                    // it is a leaf.
-                    cached.last_used = frame;
-                }
-                drawn.push(leaf);
+            if let Some(cached) = cache.columns.get_mut(&leaf)
+                && cached.ready(leaf, &cache.stale)
+            {
+                // In use even when a stand-in covering it is drawn instead
+                // (a sibling is not ready): never freed while it is a leaf.
+                cached.last_used = frame;
+                let known = (hidden == Hidden::No).then_some((cached.walls, Some(bounds.min_radius)));
+                drawn.push((leaf, known));
                 continue;
             }
             wanted.push(leaf);
@@ -1358,7 +1413,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if let Some(finer) = children(leaf)
                 && finer.iter().all(|&c| cache.ready(c))
             {
-                drawn.extend(finer);
+                drawn.extend(finer.map(|c| (c, None)));
                 continue;
             }
             let mut ancestor = leaf;
@@ -1397,7 +1452,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.tree_changed = false;
             let mut keep: HashSet<ChunkColumn> = HashSet::default();
             for leaf in tree.leaf_columns() {
-                let (column, _) = drawn_for(leaf);
+                let (column, _) = drawn_for(leaf, None);
                 if keep.insert(column) {
                     let mut up = column;
                     for _ in 0..STAND_IN_LEVEL_STEP {
@@ -1441,39 +1496,43 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             false
         };
-        let mut columns: Vec<ChunkColumn> = drawn.into_iter().filter(|&c| !covered(c)).collect();
-        columns.extend(ancestors.iter().copied().filter(|&c| !covered(c)));
-        columns.sort_unstable();
-        columns.dedup();
+        drawn.retain(|&(c, _)| !covered(c));
+        drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
+        drawn.sort_unstable_by_key(|&(c, _)| c);
+        drawn.dedup_by_key(|&mut (c, _)| c);
         self.draw.behind_horizon = behind_horizon;
         self.draw.under_sea = under_the_sea;
         self.draw.occluder_radius = occluder.unwrap_or(f64::NAN);
-        let set: HashSet<ChunkColumn> = columns.iter().copied().collect();
+        drawn_set.extend(drawn.iter().map(|&(c, _)| c));
+        let set = &drawn_set;
         let mut min_radius = f64::INFINITY;
         let options = self.options;
-        self.draw.columns = columns
+        self.draw.columns = drawn
             .iter()
-            .map(|&column| {
-                let walls = match cache.columns.get_mut(&column) {
-                    Some(cached) => {
-                        cached.last_used = frame;
-                        cached.walls
-                    }
-                    None => WallPlanes::of(layout, column),
-                };
-                // The tree's cached bounds; a stand-in the tree merged away
-                // asks the source (noise) once here. A coarse chunk drawn
-                // behind the horizon is left out: its voxels round the
-                // surface far down, and the terrain in front hides it.
-                let low = tree
-                    .node_bounds(column)
-                    .map(|b| b.min_radius)
-                    .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                    .filter(|_| !behind(column));
+            .map(|&(column, known)| {
+                let (walls, low) = known.unwrap_or_else(|| {
+                    let walls = match cache.columns.get_mut(&column) {
+                        Some(cached) => {
+                            cached.last_used = frame;
+                            cached.walls
+                        }
+                        None => WallPlanes::of(layout, column),
+                    };
+                    // The tree's cached bounds; a stand-in the tree merged
+                    // away asks the source (noise) once here. A coarse chunk
+                    // drawn behind the horizon is left out: its voxels round
+                    // the surface far down, and the terrain in front hides it.
+                    let low = tree
+                        .node_bounds(column)
+                        .map(|b| b.min_radius)
+                        .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
+                        .filter(|_| !behind(column));
+                    (walls, low)
+                });
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
-                (column, chunk_draw(voxels, column, &set, options, walls.back_sides(eye)))
+                (column, chunk_draw(voxels, column, set, options, walls.back_sides(eye)))
             })
             .collect();
         self.draw.holes = holes;
@@ -1484,7 +1543,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // Jobs: every chunk of a wanted column not meshed and not running,
         // the largest projected voxel first.
         let mut jobs = Vec::new();
-        let mut seen = HashSet::default();
         for column in wanted {
             if !seen.insert(column) {
                 continue;
@@ -1493,7 +1551,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, tree, column, frame));
             entry.last_used = frame;
             for &layer in &entry.layers {
-                if !entry.chunks.contains_key(&layer) {
+                if !entry.chunks.contains(layer) {
                     jobs.push(Job { tier: Tier::View, priority, key: column.chunk(layer) });
                 }
             }
@@ -1533,6 +1591,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             queue.extend(jobs.into_iter().filter(|job| !running.contains_key(&job.key)));
             state.voxels = Some((self.voxels.clone(), self.generation));
         }
+        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen };
         self.spawn_workers();
         self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
     }
@@ -1639,6 +1698,23 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         self.held = (chunks, bytes);
     }
+}
+
+/// A drawn column's wall planes and lowest surface radius (`None`: behind
+/// the horizon), as the selection's leaf loop finds them.
+type KnownDraw = (WallPlanes, Option<f64>);
+
+/// The sets [`Streamer::select`] fills each frame.
+#[derive(Default)]
+struct SelectScratch {
+    /// Stand-ins drawn for leaves not ready.
+    ancestors: HashSet<ChunkColumn>,
+    /// Columns drawn for hidden leaves.
+    hidden_tops: HashSet<ChunkColumn>,
+    /// The columns drawn.
+    drawn_set: HashSet<ChunkColumn>,
+    /// Columns whose jobs are listed.
+    seen: HashSet<ChunkColumn>,
 }
 
 /// Why a visible leaf is drawn as a coarser ancestor of its own.
