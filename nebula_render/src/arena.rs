@@ -6,9 +6,10 @@
 //! buffer overhead around 165 MB of meshes (the same run without uploads
 //! peaked at 417 MB). Pages of [`PAGE_VERTICES`] vertices and
 //! [`PAGE_INDICES`] indices are sub-allocated with `offset-allocator` (the
-//! two-level bitmap allocator Bevy also uses), filled with
-//! `queue.write_buffer`, and a chunk is drawn with its index range and a
-//! base vertex, binding buffers only when the page changes.
+//! two-level bitmap allocator Bevy also uses), filled through the
+//! renderer's staging belt (copies recorded and submitted before the
+//! frame's draws), and a chunk is drawn with its index range and a base
+//! vertex, binding buffers only when the page changes.
 //!
 //! A [`Slot`] frees its ranges when dropped, so dropping a chunk's mesh
 //! (the cache freeing a column) returns its space.
@@ -100,13 +101,14 @@ pub struct MeshArena {
 }
 
 impl MeshArena {
-    /// Copies a mesh into a page (a new one if none has room) and returns
-    /// its slot, or `None` for an empty mesh.
+    /// Copies a mesh into a page (a new one if none has room) with `write`
+    /// (target buffer, byte offset, bytes) and returns its slot, or `None`
+    /// for an empty mesh.
     #[must_use]
     pub fn upload(
         &self,
         device: &wgpu::Device,
-        queue: &wgpu::Queue,
+        write: &mut dyn FnMut(&wgpu::Buffer, u64, &[u8]),
         vertices: &[RenderVertex],
         indices: &[u32],
     ) -> Option<Slot> {
@@ -137,8 +139,8 @@ impl MeshArena {
             }
         };
         let target = &pages.pages[page];
-        queue.write_buffer(&target.vertices, u64::from(v.offset) * VERTEX_BYTES, bytemuck::cast_slice(vertices));
-        queue.write_buffer(&target.indices, u64::from(i.offset) * 4, bytemuck::cast_slice(indices));
+        write(&target.vertices, u64::from(v.offset) * VERTEX_BYTES, bytemuck::cast_slice(vertices));
+        write(&target.indices, u64::from(i.offset) * 4, bytemuck::cast_slice(indices));
         Some(Slot { pages: self.pages.clone(), page, vertices: v, indices: i })
     }
 

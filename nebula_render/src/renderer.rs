@@ -360,7 +360,24 @@ pub struct PlanetRenderer {
     stats: FrameStats,
     /// The chunk meshes' buffers.
     arena: MeshArena,
+    /// Uploads not yet submitted.
+    uploads: std::sync::Mutex<Uploads>,
 }
+
+/// Mesh uploads staged in reused mapped buffers and recorded as copies,
+/// submitted before the next frame's draws. `queue.write_buffer` made a
+/// fresh staging buffer for every mesh and freed it after the frame: on
+/// the 2-core machine its page faults and frees were a fifth of the frame
+/// thread's time in a flight.
+struct Uploads {
+    belt: wgpu::util::StagingBelt,
+    /// The copies recorded since the last submission.
+    encoder: Option<wgpu::CommandEncoder>,
+}
+
+/// The staging belt's unit of allocation (a larger mesh gets a buffer of
+/// its own size).
+const STAGING_CHUNK_BYTES: u64 = 8 << 20;
 
 /// What [`PlanetRenderer::prepare`] chose for the frame.
 #[derive(Clone, Copy, Debug)]
@@ -626,6 +643,10 @@ impl PlanetRenderer {
             timer,
             stats: FrameStats::default(),
             arena: MeshArena::default(),
+            uploads: std::sync::Mutex::new(Uploads {
+                belt: wgpu::util::StagingBelt::new(device.clone(), STAGING_CHUNK_BYTES),
+                encoder: None,
+            }),
         })
     }
 
@@ -673,7 +694,27 @@ impl PlanetRenderer {
             ^ key.y.wrapping_mul(19_349_663)
             ^ (key.layer as u32).wrapping_mul(83_492_791)
             ^ ((key.face as u32) << 3);
-        let slot = self.arena.upload(&self.device, &self.queue, &mesh.vertices, &mesh.indices);
+        let slot = match self.uploads.lock() {
+            Ok(mut uploads) => {
+                let Uploads { belt, encoder } = &mut *uploads;
+                let encoder = encoder.get_or_insert_with(|| {
+                    self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("chunk uploads") })
+                });
+                let mut write = |target: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
+                    if let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) {
+                        belt.write_buffer(encoder, target, offset, size).copy_from_slice(bytes);
+                    }
+                };
+                self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices)
+            }
+            // Poisoned by a panic in an earlier upload: write directly.
+            Err(_) => self.arena.upload(
+                &self.device,
+                &mut |target, offset, bytes| self.queue.write_buffer(target, offset, bytes),
+                &mesh.vertices,
+                &mesh.indices,
+            ),
+        };
         GpuMesh {
             slot,
             surface_side_ranges: mesh.surface_side_ranges.clone(),
@@ -684,10 +725,18 @@ impl PlanetRenderer {
         }
     }
 
-    /// Lets wgpu release the staging memory of this frame's uploads now
-    /// (call after a frame that uploaded; `render` does it too).
+    /// Submits the uploads made since the last call (`prepare` and
+    /// `render` do it first thing), so that their meshes can be drawn by
+    /// what is submitted next, and lets the staging memory of finished
+    /// ones be reused.
     pub fn finish_uploads(&self) {
-        self.queue.submit([]);
+        if let Ok(mut uploads) = self.uploads.lock()
+            && let Some(encoder) = uploads.encoder.take()
+        {
+            uploads.belt.finish();
+            self.queue.submit([encoder.finish()]);
+            uploads.belt.recall();
+        }
         let _ = self.device.poll(wgpu::PollType::Poll);
     }
 
@@ -702,6 +751,7 @@ impl PlanetRenderer {
         size: (u32, u32),
         meshes: impl IntoIterator<Item = (&'a GpuMesh, ChunkDraw)>,
     ) {
+        self.finish_uploads();
         self.ensure_depth(size);
         let aspect = size.0 as f32 / size.1.max(1) as f32;
         // Camera-relative: the eye is the origin of the render space; the

@@ -1137,4 +1137,51 @@ mod streaming {
         assert!(fullest > budget / 2, "the budget was never approached ({fullest} bytes): the check cannot tell");
         println!("uploads: at most {fullest} bytes a frame of {budget}, settled after {frames} frames");
     }
+
+    /// The niceness of each thread of this process named `prefix…`, and
+    /// of the calling thread (Linux: field 19 of `/proc/self/task/*/stat`).
+    #[cfg(target_os = "linux")]
+    fn niceness(prefix: &str) -> (Vec<i64>, i64) {
+        let nice = |dir: &std::path::Path| {
+            let stat = std::fs::read_to_string(dir.join("stat")).ok()?;
+            // After the name in parentheses: state is field 3, nice 19.
+            stat.rsplit_once(')')?.1.split_whitespace().nth(16)?.parse::<i64>().ok()
+        };
+        let threads = std::fs::read_dir("/proc/self/task")
+            .unwrap()
+            .filter_map(|entry| {
+                let dir = entry.ok()?.path();
+                let name = std::fs::read_to_string(dir.join("comm")).ok()?;
+                if name.starts_with(prefix) { nice(&dir) } else { None }
+            })
+            .collect();
+        (threads, nice(std::path::Path::new("/proc/thread-self")).unwrap())
+    }
+
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn meshing_threads_run_below_the_frame_threads_priority() {
+        // The frame thread must not wait for a core while chunks mesh: the
+        // streamer's meshing threads run at a lower priority (a higher
+        // niceness) than the thread that made it.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+        let up = DVec3::new(0.5, 0.5, 0.7).normalize();
+        let position = planet.surface_point(up) + up * 40.0;
+        let camera = Camera { position, forward: up.any_orthonormal_vector() - up * 0.2, up, aspect: 1.6 };
+        let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let _streamer = Streamer::new(planet, LodSettings::default(), camera, 2, &mut upload).unwrap();
+        // The threads set their priority as they start.
+        let start = std::time::Instant::now();
+        loop {
+            let (meshing, own) = niceness("nebula-mesh");
+            if meshing.len() >= 2 && meshing.iter().all(|&n| n > own) {
+                return;
+            }
+            assert!(
+                start.elapsed().as_secs() < 10,
+                "meshing threads' niceness {meshing:?}, the frame thread's {own}: not below it"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
 }
