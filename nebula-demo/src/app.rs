@@ -169,6 +169,13 @@ impl PlanetApp {
         self.schedule.run(&mut self.world);
     }
 
+    /// Submits the meshes the steps since the last drawn frame uploaded:
+    /// a drawn frame submits them with its own commands; a loop that steps
+    /// without drawing calls this after each step.
+    pub fn submit_uploads(&self) {
+        self.world.resource::<Gpu>().renderer.finish_uploads();
+    }
+
     /// Whether the view is final: nothing drawn in place of a visible leaf,
     /// no job queued or running, nothing drawn from before an edit.
     #[must_use]
@@ -318,14 +325,7 @@ fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<Gpu>) {
     if let Err(error) = stream.0.set_view(tau, view.screen_height_px, view.fov_y_degrees) {
         eprintln!("nebula-demo: keeping the last view for the LOD tree: {error}");
     }
-    let mut uploaded = false;
-    stream.0.update(view.camera, &mut |key, mesh| {
-        uploaded = true;
-        gpu.renderer.upload(key, mesh)
-    });
-    if uploaded {
-        gpu.renderer.finish_uploads();
-    }
+    stream.0.update(view.camera, &mut |key, mesh| gpu.renderer.upload(key, mesh));
 }
 
 /// A camera for the LOD selection.

@@ -204,6 +204,7 @@ pub fn prime(app: &mut PlanetApp) -> anyhow::Result<f64> {
     loop {
         let step_started = Instant::now();
         app.step();
+        app.submit_uploads();
         let list = app.draw_list();
         if list.holes == 0 && list.max_stand_in_levels <= MAX_FIRST_FRAME_LEVELS {
             return Ok(started.elapsed().as_secs_f64() * 1e3);
@@ -274,6 +275,7 @@ pub fn settle_and_draw(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow:
     loop {
         let step_started = Instant::now();
         app.step();
+        app.submit_uploads();
         frames += 1;
         if frames >= shot.frames && app.settled() {
             break;

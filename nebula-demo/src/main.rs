@@ -656,11 +656,16 @@ impl Windowed {
         state.app.step();
         let texture = match state.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            // No frame drawn (a minimised window): the uploads go now.
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 state.surface.configure(&state.app.gpu().device, &state.config);
+                state.app.submit_uploads();
                 return Ok(());
             }
-            _ => return Ok(()),
+            _ => {
+                state.app.submit_uploads();
+                return Ok(());
+            }
         };
         let view = texture.texture.create_view(&wgpu::TextureViewDescriptor::default());
         state.app.draw(&view, size, self.shot.background, self.view);

@@ -730,14 +730,27 @@ impl PlanetRenderer {
     /// what is submitted next, and lets the staging memory of finished
     /// ones be reused.
     pub fn finish_uploads(&self) {
-        if let Ok(mut uploads) = self.uploads.lock()
-            && let Some(encoder) = uploads.encoder.take()
-        {
-            uploads.belt.finish();
-            self.queue.submit([encoder.finish()]);
-            uploads.belt.recall();
+        if let Some(copies) = self.take_uploads() {
+            self.queue.submit([copies]);
+            self.recall_staging();
         }
         let _ = self.device.poll(wgpu::PollType::Poll);
+    }
+
+    /// The copies of the uploads made since the last submission, closed.
+    fn take_uploads(&self) -> Option<wgpu::CommandBuffer> {
+        let mut uploads = self.uploads.lock().ok()?;
+        let encoder = uploads.encoder.take()?;
+        uploads.belt.finish();
+        Some(encoder.finish())
+    }
+
+    /// Lets the staging buffers of submitted uploads be reused once the
+    /// GPU is done with them.
+    fn recall_staging(&self) {
+        if let Ok(mut uploads) = self.uploads.lock() {
+            uploads.belt.recall();
+        }
     }
 
     /// Writes the frame's constants and its draw list for a `size` target:
@@ -991,6 +1004,8 @@ impl PlanetRenderer {
             timer.collect();
             timer.timing = !timer.pending;
         }
+        // The uploads go in the frame's submission, ahead of its draws.
+        let copies = self.take_uploads();
         self.prepare(frame, size, meshes);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         let mut draw_calls = {
@@ -999,7 +1014,8 @@ impl PlanetRenderer {
         };
         draw_calls += self.draw_atmosphere(&mut encoder, target);
         let timed = self.timer.as_mut().is_some_and(|t| t.resolve(&mut encoder));
-        self.queue.submit([encoder.finish()]);
+        self.queue.submit(copies.into_iter().chain([encoder.finish()]));
+        self.recall_staging();
         if timed && let Some(timer) = self.timer.as_mut() {
             timer.map();
         }

@@ -441,7 +441,12 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     };
     let quarter = vec![vertex; PAGE_VERTICES as usize / 4];
     let write = |vertices, indices| {
-        arena.upload(&gpu.device, &mut |target, offset, bytes| gpu.queue.write_buffer(target, offset, bytes), vertices, indices)
+        arena.upload(
+            &gpu.device,
+            &mut |target, offset, bytes| gpu.queue.write_buffer(target, offset, bytes),
+            vertices,
+            indices,
+        )
     };
     let upload = || write(&quarter, &[0, 1, 2]).expect("uploaded");
     assert!(write(&[], &[]).is_none(), "an empty mesh takes no space");
