@@ -681,13 +681,15 @@ pub struct StreamFigures {
 }
 
 /// The meshing threads' priority, on `thread-priority`'s cross-platform
-/// scale (0–99, where the normal priority is about 48): niceness 5 on
-/// Linux. Measured on the 2-core machine, 1 km/s land flight 300 m over
-/// Earth, 640×400: the frame thread's step median / 95th percentile 5.4 /
-/// 11.2 ms at the normal priority, 3.2 / 9.6 ms at this one, with 5,155
-/// chunks drawn instead of 5,207 (meshing keeps up); niceness 10 gave
-/// 4.1 / 10.5 ms but only 3,078 chunks (coarser stand-ins for longer).
-pub const MESHING_THREAD_PRIORITY: u8 = 35;
+/// scale (0–99, where the normal priority is about 48): niceness 2 on
+/// Linux, so that the frame thread gets a core first without starving
+/// meshing. Measured on the 2-core machine (lavapipe rasterising on the
+/// same cores), 1 km/s flights 300 m over Earth at 640×400: over land the
+/// frame thread's step median / 95th percentile 5.4 / 11.2 ms at the normal
+/// priority, 2.5 / 7.4 ms at this one; niceness 5 gave the same over land
+/// but over the mountains meshing fell behind (median 1,675 chunks drawn
+/// through stand-ins 3 LODs coarse, against 8,644 and 1 LOD here).
+pub const MESHING_THREAD_PRIORITY: u8 = 41;
 
 thread_local! {
     static BUFFER: std::cell::RefCell<ChunkMeshBuffer> = std::cell::RefCell::new(ChunkMeshBuffer::new());
