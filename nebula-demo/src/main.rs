@@ -131,6 +131,10 @@ struct Args {
     /// (`false`: on the frame thread, as before; for comparing).
     #[arg(long, value_name = "BOOL", default_value_t = true, action = clap::ArgAction::Set)]
     lod_thread: bool,
+    /// Mesh memory the streamer keeps at most, MiB (renderer buffers and
+    /// CPU copies): past it the meshes used longest ago are freed.
+    #[arg(long, value_name = "MIB", default_value_t = nebula_world::stream::MeshCache::<nebula_render::GpuMesh>::default_max_bytes() >> 20)]
+    mesh_budget_mb: u64,
     /// A saved world (created if missing): its edits are drawn, picked and
     /// edited; `edit` saves into it.
     #[arg(long, value_name = "PATH")]
@@ -355,7 +359,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     if !args.headless {
         match EventLoop::new() {
-            Ok(event_loop) => return windowed(event_loop, world, shot, draw_options(&args), args.msaa),
+            Ok(event_loop) => return windowed(event_loop, world, shot, draw_options(&args), args.msaa, args.mesh_budget_mb),
             Err(error) => eprintln!("nebula-demo: no display ({error}); rendering headless instead"),
         }
     }
@@ -410,12 +414,19 @@ fn draw_options(args: &Args) -> DrawOptions {
     DrawOptions { skirts: !args.no_skirts, morph: args.morph.into(), ..DrawOptions::default() }
 }
 
+/// The streamer and renderer options the command line sets.
+fn configure(app: &mut PlanetApp, args: &Args) {
+    app.set_draw_options(draw_options(args));
+    set_multisampling(app, args.msaa);
+    let mut stream = app.streamer_mut();
+    stream.0.set_lod_thread(args.lod_thread);
+    stream.0.cache.max_bytes = args.mesh_budget_mb.saturating_mul(1 << 20);
+}
+
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = GpuContext::headless()?;
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
-    app.set_draw_options(draw_options(args));
-    set_multisampling(&mut app, args.msaa);
-    app.streamer_mut().0.set_lod_thread(args.lod_thread);
+    configure(&mut app, args);
     if args.screenshot.is_none() && args.camera_pos.is_none() {
         // No camera given: an orbit-to-surface sequence.
         let dir = DVec3::new(0.35, 0.55, 0.76).normalize();
@@ -457,9 +468,7 @@ fn flight(planet: Arc<PlanetVoxels>, shot: &Shot, path: &std::path::Path, args: 
     let flight = nebula_demo::flight::Flight::from_json(&text).with_context(|| format!("in {}", path.display()))?;
     let gpu = GpuContext::headless()?;
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
-    app.set_draw_options(draw_options(args));
-    set_multisampling(&mut app, args.msaa);
-    app.streamer_mut().0.set_lod_thread(args.lod_thread);
+    configure(&mut app, args);
     let report = nebula_demo::flight::fly(&mut app, &flight, shot, args.fps, args.frames_dir.as_deref())?;
     let json = report.json();
     println!(
@@ -498,6 +507,8 @@ struct Windowed {
     walker: Option<Walker>,
     options: DrawOptions,
     msaa: Multisampling,
+    /// `--mesh-budget-mb`.
+    mesh_budget_mb: u64,
     shot: Shot,
     state: Option<WindowState>,
     eye: DVec3,
@@ -526,6 +537,7 @@ fn windowed(
     shot: Shot,
     options: DrawOptions,
     msaa: Multisampling,
+    mesh_budget_mb: u64,
 ) -> anyhow::Result<()> {
     let forward = (shot.look_at - shot.position).normalize();
     let mut demo = Windowed {
@@ -535,6 +547,7 @@ fn windowed(
         walker: None,
         options,
         msaa,
+        mesh_budget_mb,
         eye: shot.position,
         // Straight down has no heading: tip it a hair off vertical.
         orientation: Orientation::looking(shot.position, forward)
@@ -754,6 +767,7 @@ impl ApplicationHandler for Windowed {
             nebula_demo::headless::place_sun(&mut app, &self.shot)?;
             app.set_draw_options(self.options);
             set_multisampling(&mut app, self.msaa);
+            app.streamer_mut().0.cache.max_bytes = self.mesh_budget_mb.saturating_mul(1 << 20);
             let hud = Hud::new(app.gpu(), (config.width, config.height), config.format)?;
             Ok(WindowState { window, surface, config, app, hud })
         })();
