@@ -359,7 +359,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     if !args.headless {
         match EventLoop::new() {
-            Ok(event_loop) => return windowed(event_loop, world, shot, draw_options(&args), args.msaa, args.mesh_budget_mb),
+            Ok(event_loop) => {
+                return windowed(event_loop, world, shot, draw_options(&args), args.msaa, args.mesh_budget_mb);
+            }
             Err(error) => eprintln!("nebula-demo: no display ({error}); rendering headless instead"),
         }
     }

@@ -228,8 +228,7 @@ impl RenderMesh {
 
     /// The index ranges drawn with `draw`: the surface and the skirts of
     /// the sides lowered.
-    #[must_use]
-    pub fn drawn_ranges(&self, draw: &ChunkDraw) -> Vec<std::ops::Range<usize>> {
+    pub fn drawn_ranges(&self, draw: &ChunkDraw) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
         drawn_ranges(&self.surface_side_ranges, &self.skirt_ranges, draw)
     }
 
@@ -243,26 +242,32 @@ impl RenderMesh {
 
 /// The surface ranges of the sides `draw` does not hide and the skirt
 /// ranges of the sides it lowers, in index order, adjacent ranges merged.
-#[must_use]
+/// No allocation: a renderer calls it for every drawn chunk every frame.
 pub fn drawn_ranges(
     surface: &[std::ops::Range<usize>; 6],
     skirts: &[std::ops::Range<usize>; 4],
     draw: &ChunkDraw,
-) -> Vec<std::ops::Range<usize>> {
+) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
+    let mut parts: [std::ops::Range<usize>; 10] = Default::default();
+    let mut count = 0;
     let shown_surface =
         surface.iter().enumerate().filter(|(side, _)| draw.hidden_sides & (1 << side) == 0).map(|(_, r)| r);
     let lowered_skirts = skirts.iter().zip(draw.skirt_depths).filter(|(_, depth)| *depth > 0.0).map(|(r, _)| r);
-    let mut parts: Vec<&std::ops::Range<usize>> =
-        shown_surface.chain(lowered_skirts).filter(|r| !r.is_empty()).collect();
-    parts.sort_unstable_by_key(|r| r.start);
-    let mut ranges: Vec<std::ops::Range<usize>> = Vec::with_capacity(parts.len());
-    for range in parts {
-        match ranges.last_mut() {
-            Some(last) if last.end == range.start => last.end = range.end,
-            _ => ranges.push(range.clone()),
+    for range in shown_surface.chain(lowered_skirts).filter(|r| !r.is_empty()) {
+        parts[count] = range.clone();
+        count += 1;
+    }
+    parts[..count].sort_unstable_by_key(|r| r.start);
+    let mut merged = 0;
+    for n in 0..count {
+        if merged > 0 && parts[merged - 1].end == parts[n].start {
+            parts[merged - 1].end = parts[n].end;
+        } else {
+            parts[merged] = parts[n].clone();
+            merged += 1;
         }
     }
-    ranges
+    parts.into_iter().take(merged)
 }
 
 impl ChunkMesh {

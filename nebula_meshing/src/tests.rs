@@ -846,3 +846,40 @@ fn vertices_that_collapse_onto_one_target_are_drawn_bit_identical_at_mu_zero() {
     assert!(groups > 500, "too few collapsing groups to tell: {groups}");
     assert!(control_misses > groups / 10, "the control cannot tell: {control_misses}/{groups}");
 }
+
+proptest! {
+    #[test]
+    fn drawn_ranges_are_the_shown_parts_in_order_and_merged(
+        lengths in proptest::collection::vec(0usize..5, 10),
+        hidden_sides in 0u8..64,
+        lowered in proptest::collection::vec(proptest::bool::ANY, 4),
+    ) {
+        // Ten consecutive parts (six surface sides, four skirts) in a
+        // shuffled order of index ranges; what is drawn is exactly the
+        // indices of the parts shown, as ascending ranges that neither
+        // touch nor overlap.
+        let order = [3, 7, 0, 9, 5, 1, 8, 2, 6, 4];
+        let mut starts = [0usize; 10];
+        let mut at = 0;
+        for &part in &order {
+            starts[part] = at;
+            at += lengths[part];
+        }
+        let part = |n: usize| starts[n]..starts[n] + lengths[n];
+        let surface: [std::ops::Range<usize>; 6] = std::array::from_fn(part);
+        let skirts: [std::ops::Range<usize>; 4] = std::array::from_fn(|n| part(6 + n));
+        let skirt_depths = std::array::from_fn(|n| if lowered[n] { 1.0 } else { 0.0 });
+        let draw = ChunkDraw { parent_error: 0.0, skirt_depths, hidden_sides };
+        let ranges: Vec<_> = drawn_ranges(&surface, &skirts, &draw).collect();
+        prop_assert!(ranges.windows(2).all(|w| w[0].end < w[1].start), "{ranges:?}");
+        prop_assert!(ranges.iter().all(|r| !r.is_empty()));
+        let drawn: HashSet<usize> = ranges.into_iter().flatten().collect();
+        let shown: HashSet<usize> = (0..6)
+            .filter(|side| hidden_sides & (1 << side) == 0)
+            .map(part)
+            .chain((0..4).filter(|&n| lowered[n]).map(|n| part(6 + n)))
+            .flatten()
+            .collect();
+        prop_assert_eq!(drawn, shown);
+    }
+}

@@ -181,7 +181,6 @@ fn geometry_hits(
                 let placed: Vec<DVec3> = mesh.vertices.iter().map(|v| v.drawn_relative(frame, chunk)).collect();
                 let exact: Vec<[DVec3; 3]> = mesh
                     .drawn_ranges(chunk)
-                    .into_iter()
                     .flat_map(|range| mesh.indices[range].chunks_exact(3))
                     .map(|t| [placed[t[0] as usize], placed[t[1] as usize], placed[t[2] as usize]])
                     .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).length_squared() > 0.0)
