@@ -187,6 +187,7 @@ impl Held {
 
 /// The meshes of one chunk column (all its radial layers).
 struct CachedColumn<H> {
+    column: ChunkColumn,
     /// The radial layers that hold surface (a failed bounds query: none).
     layers: Vec<i32>,
     /// Its meshes: changed only through the cache ([`MeshCache::insert`],
@@ -213,6 +214,7 @@ impl<H: MeshHandle> CachedColumn<H> {
             None => voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default(),
         };
         Self {
+            column,
             missing: layers.len(),
             layers,
             chunks: LayerMeshes::default(),
@@ -283,9 +285,74 @@ impl<H> LayerMeshes<H> {
     }
 }
 
+/// The cached columns: a dense slab, and a small map from column to slot
+/// (a hash map holding the columns themselves was tens of megabytes of
+/// buckets, a miss in memory for every lookup of every drawn column; the
+/// draw list keeps each drawn column's slot and walks them without one).
+struct ColumnStore<H> {
+    slots: HashMap<ChunkColumn, usize>,
+    columns: slab::Slab<CachedColumn<H>>,
+}
+
+impl<H> Default for ColumnStore<H> {
+    fn default() -> Self {
+        Self { slots: HashMap::default(), columns: slab::Slab::new() }
+    }
+}
+
+impl<H> ColumnStore<H> {
+    fn get(&self, column: &ChunkColumn) -> Option<&CachedColumn<H>> {
+        self.slots.get(column).map(|&slot| &self.columns[slot])
+    }
+
+    fn get_mut(&mut self, column: &ChunkColumn) -> Option<&mut CachedColumn<H>> {
+        self.slot_mut(column).map(|(_, cached)| cached)
+    }
+
+    /// The column's slot and meshes.
+    fn slot_mut(&mut self, column: &ChunkColumn) -> Option<(usize, &mut CachedColumn<H>)> {
+        let slot = *self.slots.get(column)?;
+        Some((slot, &mut self.columns[slot]))
+    }
+
+    /// The column in `slot`, if it is still `column`.
+    fn in_slot(&self, slot: usize, column: ChunkColumn) -> Option<&CachedColumn<H>> {
+        self.columns.get(slot).filter(|cached| cached.column == column)
+    }
+
+    /// The column's slot and meshes, made by `new` if it has none.
+    fn get_or_insert_with(
+        &mut self,
+        column: ChunkColumn,
+        new: impl FnOnce() -> CachedColumn<H>,
+    ) -> (usize, &mut CachedColumn<H>) {
+        let slot = *self.slots.entry(column).or_insert_with(|| self.columns.insert(new()));
+        (slot, &mut self.columns[slot])
+    }
+
+    fn remove(&mut self, column: &ChunkColumn) -> Option<CachedColumn<H>> {
+        self.slots.remove(column).map(|slot| self.columns.remove(slot))
+    }
+
+    fn retain(&mut self, mut keep: impl FnMut(&ChunkColumn, &CachedColumn<H>) -> bool) {
+        let columns = &mut self.columns;
+        self.slots.retain(|column, &mut slot| {
+            let kept = keep(column, &columns[slot]);
+            if !kept {
+                columns.remove(slot);
+            }
+            kept
+        });
+    }
+
+    fn iter(&self) -> impl Iterator<Item = (&ChunkColumn, &CachedColumn<H>)> {
+        self.columns.iter().map(|(_, cached)| (&cached.column, cached))
+    }
+}
+
 /// Every chunk mesh held, by column, and the budget it is held to.
 pub struct MeshCache<H> {
-    columns: HashMap<ChunkColumn, CachedColumn<H>>,
+    columns: ColumnStore<H>,
     /// The sum of the columns' `held`.
     held: Held,
     /// Keep a CPU copy of each mesh.
@@ -429,7 +496,7 @@ impl<H: MeshHandle> MeshCache<H> {
     #[cfg(test)]
     fn recount(&self) -> Held {
         let mut held = Held::default();
-        for (_, chunk) in self.columns.values().flat_map(|c| c.chunks.iter()) {
+        for (_, chunk) in self.columns.iter().flat_map(|(_, c)| c.chunks.iter()) {
             held.add(chunk.held());
         }
         held
@@ -726,6 +793,8 @@ pub struct Streamer<S, H> {
     keep: HashSet<ChunkColumn>,
     /// The selection's sets, kept for their allocations.
     scratch: SelectScratch,
+    /// The cache slot of each column of the draw list, in its order.
+    drawn_slots: Vec<Option<usize>>,
     /// Chunks and bytes held at the end of the last update.
     held: (usize, u64),
     /// Chunks whose meshing failed and when to try them again.
@@ -806,7 +875,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 receiver: Mutex::new(receiver),
             },
             cache: MeshCache {
-                columns: HashMap::default(),
+                columns: ColumnStore::default(),
                 held: Held::default(),
                 keep_cpu: false,
                 prefetch: true,
@@ -830,6 +899,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             tree_changed: true,
             keep: HashSet::default(),
             scratch: SelectScratch::default(),
+            drawn_slots: Vec::new(),
             held: (0, 0),
             failed: HashMap::default(),
             lod_failures: 0,
@@ -957,9 +1027,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         #[cfg(test)]
         {
             assert_eq!(self.cache.held, self.cache.recount(), "the cache's running totals");
-            for (column, cached) in &self.cache.columns {
+            for (column, cached) in self.cache.columns.iter() {
                 let missing = cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)).count();
                 assert_eq!(cached.missing, missing, "{column:?}: layers without a mesh");
+            }
+            assert_eq!(self.draw.columns.len(), self.drawn_slots.len());
+            for (&(column, _), &slot) in self.draw.columns.iter().zip(&self.drawn_slots) {
+                assert!(
+                    slot.is_some_and(|slot| self.cache.columns.in_slot(slot, column).is_some()),
+                    "{column:?} is drawn from slot {slot:?}, which does not hold it"
+                );
             }
         }
     }
@@ -1170,10 +1247,18 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// The chunks to draw this frame, with their draw constants.
     pub fn drawn(&self) -> impl Iterator<Item = (ChunkKey, &LoadedChunk<H>, ChunkDraw)> + '_ {
+        // Each column straight from its slot; the list is made with its
+        // slots, and nothing frees a drawn column until the next one.
         self.draw
             .columns
             .iter()
-            .filter_map(|(column, draw)| self.cache.columns.get(column).map(|c| (*column, c, *draw)))
+            .zip(&self.drawn_slots)
+            .filter_map(|(&(column, draw), &slot)| {
+                let cached = slot
+                    .and_then(|slot| self.cache.columns.in_slot(slot, column))
+                    .or_else(|| self.cache.columns.get(&column));
+                cached.map(|c| (column, c, draw))
+            })
             .flat_map(|(column, cached, draw)| {
                 cached.chunks.iter().map(move |(layer, chunk)| (column.chunk(layer), chunk, draw))
             })
@@ -1294,7 +1379,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         };
         let loaded = LoadedChunk { handle, surface_triangles, skirt_triangles, cpu };
         let (voxels, tree, frame) = (&*self.voxels, &self.tree, self.frame);
-        let entry = self.cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, tree, column, frame));
+        let (_, entry) =
+            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame));
         if entry.layers.contains(&key.layer) {
             self.cache.insert(column, key.layer, loaded);
         }
@@ -1463,13 +1549,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if hidden != Hidden::No && !hidden_tops.insert(leaf) {
                 continue;
             }
-            if let Some(cached) = cache.columns.get_mut(&leaf)
+            if let Some((slot, cached)) = cache.columns.slot_mut(&leaf)
                 && cached.ready(leaf, &cache.stale)
             {
                 // In use even when a stand-in covering it is drawn instead
                 // (a sibling is not ready): never freed while it is a leaf.
                 cached.last_used = frame;
-                let known = (hidden == Hidden::No).then_some((cached.walls, Some(bounds.min_radius)));
+                let known = (hidden == Hidden::No).then_some((Some(slot), cached.walls, Some(bounds.min_radius)));
                 drawn.push((leaf, known));
                 continue;
             }
@@ -1572,16 +1658,17 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let set = &drawn_set;
         let mut min_radius = f64::INFINITY;
         let options = self.options;
+        self.drawn_slots.clear();
         self.draw.columns = drawn
             .iter()
             .map(|&(column, known)| {
-                let (walls, low) = known.unwrap_or_else(|| {
-                    let walls = match cache.columns.get_mut(&column) {
-                        Some(cached) => {
+                let (slot, walls, low) = known.unwrap_or_else(|| {
+                    let (slot, walls) = match cache.columns.slot_mut(&column) {
+                        Some((slot, cached)) => {
                             cached.last_used = frame;
-                            cached.walls
+                            (Some(slot), cached.walls)
                         }
-                        None => WallPlanes::of(layout, column),
+                        None => (None, WallPlanes::of(layout, column)),
                     };
                     // The tree's cached bounds; a stand-in the tree merged
                     // away asks the source (noise) once here. A coarse chunk
@@ -1592,11 +1679,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         .map(|b| b.min_radius)
                         .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
                         .filter(|_| !behind(column));
-                    (walls, low)
+                    (slot, walls, low)
                 });
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
+                self.drawn_slots.push(slot);
                 (column, chunk_draw(voxels, column, set, options, walls.back_sides(eye)))
             })
             .collect();
@@ -1613,7 +1701,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 continue;
             }
             let priority = priority(column);
-            let entry = cache.columns.entry(column).or_insert_with(|| CachedColumn::new(voxels, tree, column, frame));
+            let (_, entry) =
+                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame));
             entry.last_used = frame;
             for &layer in &entry.layers {
                 if !entry.chunks.contains(layer) {
@@ -1775,9 +1864,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 }
 
-/// A drawn column's wall planes and lowest surface radius (`None`: behind
-/// the horizon), as the selection's leaf loop finds them.
-type KnownDraw = (WallPlanes, Option<f64>);
+/// A drawn column's slot in the cache, wall planes and lowest surface
+/// radius (`None`: behind the horizon), as the selection's leaf loop finds
+/// them.
+type KnownDraw = (Option<usize>, WallPlanes, Option<f64>);
 
 /// The sets [`Streamer::select`] fills each frame.
 #[derive(Default)]
