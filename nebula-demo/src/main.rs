@@ -281,6 +281,9 @@ fn parse_rgb(text: &str) -> Result<[u8; 3], String> {
 }
 
 fn main() -> std::process::ExitCode {
+    // The libraries report through `log`: warnings and errors by default,
+    // more with RUST_LOG.
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let mut args = Args::parse();
     let (seed, radius, voxel_size) = args.planet.parameters();
     args.seed = args.seed_arg.unwrap_or(seed);

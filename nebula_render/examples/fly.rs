@@ -163,6 +163,7 @@ impl ApplicationHandler for App {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let settings = match std::env::args().nth(1).as_deref() {
         Some("earth") => PlanetSettings::earth(11),
         _ => PlanetSettings::small(7),

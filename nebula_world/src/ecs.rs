@@ -63,7 +63,7 @@ pub fn stream_system<S: VoxelSource + 'static, H: MeshHandle>(
     if let Some(view) = view.filter(|view| view.is_changed())
         && let Err(error) = stream.0.set_view(view.threshold_px, view.screen_height_px, view.fov_y_degrees)
     {
-        eprintln!("nebula: keeping the last view, this one is refused: {error}");
+        log::warn!("keeping the last view, this one is refused: {error}");
     }
     stream.0.update(camera.0, &mut *uploader.0);
 }

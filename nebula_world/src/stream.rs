@@ -854,7 +854,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             })
             // Jobs catch their own panics; without a handler rayon would
             // abort the game on any other.
-            .panic_handler(|panic| eprintln!("nebula: a meshing thread panicked: {}", panic_text(&*panic)))
+            .panic_handler(|panic| log::error!("a meshing thread panicked: {}", panic_text(&*panic)))
             .build()
             .map_err(|e| StreamError::Threads(e.to_string()))?;
         let mut streamer = Self {
@@ -1096,7 +1096,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.culled_for = None;
             self.lod_failures += 1;
             if self.lod_failures == 1 {
-                eprintln!("nebula: LOD update failed, keeping the last selection (reported once): {error}");
+                log::warn!("LOD update failed, keeping the last selection (reported once): {error}");
             }
             if damaged {
                 // Start the tree again from its roots: the next updates
@@ -1362,7 +1362,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 failure.attempts += 1;
                 failure.retry_at = self.frame + (RETRY_AFTER_FRAMES << (failure.attempts - 1).min(6));
                 if failure.attempts == 1 {
-                    eprintln!("nebula: meshing {key:?} failed, retrying with backoff: {message}");
+                    log::warn!("meshing {key:?} failed, retrying with backoff: {message}");
                     self.failures.push(MeshFailure { key, message });
                 }
                 return true;
