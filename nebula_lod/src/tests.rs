@@ -568,3 +568,38 @@ proptest! {
         prop_assert!(!tree.cull_covers(&camera));
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4096))]
+    #[test]
+    fn the_horizon_hides_what_the_angle_test_hides(
+        eye in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0, 1.0f64..3.0),
+        beyond_reach in -0.1f64..0.2,
+        angular_radius in prop_oneof![0.0f64..0.01, 0.0f64..0.5],
+        heights in prop_oneof![(0.0f64..0.001, 0.0f64..0.001), (0.0f64..0.2, 0.0f64..0.2)],
+        occluder in prop_oneof![0.9f64..1.0, 0.999f64..1.0],
+    ) {
+        // Its shortcut for nodes within the eye's reach changes no answer
+        // of the angle test it stands for: hidden when the node's nearest
+        // point is farther round than acos(R/d) + acos(R/r). Nodes are
+        // placed about the eye's reach, where the two could differ.
+        let (x, y, z, d) = eye;
+        let eye = DVec3::new(x, y, z).normalize_or(DVec3::X) * d;
+        let reach = (occluder / d).acos();
+        let across = eye.normalize().any_orthonormal_vector();
+        let angle = (reach + beyond_reach).clamp(0.0, std::f64::consts::PI);
+        let center_direction = eye.normalize() * angle.cos() + across * angle.sin();
+        let max_radius = 1.0 + heights.0.max(heights.1);
+        let bounds = NodeBounds {
+            min: DVec3::ZERO,
+            max: DVec3::ZERO,
+            center_direction,
+            angular_radius,
+            min_radius: 1.0 + heights.0.min(heights.1),
+            max_radius,
+        };
+        let hidden = max_radius > occluder
+            && eye.angle_between(center_direction) - angular_radius > reach + (occluder / max_radius).acos();
+        prop_assert_eq!(Horizon::new(eye, occluder).hides(&bounds), hidden);
+    }
+}
