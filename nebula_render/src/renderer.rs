@@ -694,27 +694,17 @@ impl PlanetRenderer {
             ^ key.y.wrapping_mul(19_349_663)
             ^ (key.layer as u32).wrapping_mul(83_492_791)
             ^ ((key.face as u32) << 3);
-        let slot = match self.uploads.lock() {
-            Ok(mut uploads) => {
-                let Uploads { belt, encoder } = &mut *uploads;
-                let encoder = encoder.get_or_insert_with(|| {
-                    self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("chunk uploads") })
-                });
-                let mut write = |target: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
-                    if let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) {
-                        belt.write_buffer(encoder, target, offset, size).copy_from_slice(bytes);
-                    }
-                };
-                self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices)
+        let mut uploads = self.uploads();
+        let Uploads { belt, encoder } = &mut *uploads;
+        let encoder = encoder.get_or_insert_with(|| {
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("chunk uploads") })
+        });
+        let mut write = |target: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
+            if let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) {
+                belt.write_buffer(encoder, target, offset, size).copy_from_slice(bytes);
             }
-            // Poisoned by a panic in an earlier upload: write directly.
-            Err(_) => self.arena.upload(
-                &self.device,
-                &mut |target, offset, bytes| self.queue.write_buffer(target, offset, bytes),
-                &mesh.vertices,
-                &mesh.indices,
-            ),
         };
+        let slot = self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices);
         GpuMesh {
             slot,
             surface_side_ranges: mesh.surface_side_ranges.clone(),
@@ -737,9 +727,16 @@ impl PlanetRenderer {
         let _ = self.device.poll(wgpu::PollType::Poll);
     }
 
+    /// The pending uploads. A panic while they were locked cannot have
+    /// left a copy half recorded (each is recorded whole), so a poisoned
+    /// lock's state is taken as it is.
+    fn uploads(&self) -> std::sync::MutexGuard<'_, Uploads> {
+        self.uploads.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     /// The copies of the uploads made since the last submission, closed.
     fn take_uploads(&self) -> Option<wgpu::CommandBuffer> {
-        let mut uploads = self.uploads.lock().ok()?;
+        let mut uploads = self.uploads();
         let encoder = uploads.encoder.take()?;
         uploads.belt.finish();
         Some(encoder.finish())
@@ -748,9 +745,7 @@ impl PlanetRenderer {
     /// Lets the staging buffers of submitted uploads be reused once the
     /// GPU is done with them.
     fn recall_staging(&self) {
-        if let Ok(mut uploads) = self.uploads.lock() {
-            uploads.belt.recall();
-        }
+        self.uploads().belt.recall();
     }
 
     /// Writes the frame's constants and its draw list for a `size` target:
