@@ -84,6 +84,10 @@ struct Args {
     /// Voxel size in metres [default: the preset's].
     #[arg(long = "voxel-size", value_name = "M")]
     voxel_size_arg: Option<f64>,
+    /// Cave tunnel height in metres, 0 for no caves [default: five voxels,
+    /// at most 1/30 of the relief].
+    #[arg(long = "cave-size", value_name = "M")]
+    cave_size: Option<f64>,
     /// The planet seed used: --seed or the preset's.
     #[arg(skip)]
     seed: u32,
@@ -306,7 +310,10 @@ fn run(args: Args) -> anyhow::Result<()> {
             bail!("{name} must be a positive number, got {value}");
         }
     }
-    let settings = PlanetSettings::scaled(args.seed, args.radius, args.voxel_size);
+    let mut settings = PlanetSettings::scaled(args.seed, args.radius, args.voxel_size);
+    if let Some(cave_size) = args.cave_size {
+        settings.cave_size = cave_size;
+    }
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
     })?;
@@ -393,6 +400,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         "min_drawn_radius": min,
         "max_lod": layout.max_lod(),
         "seed": s.seed,
+        "cave_size": s.cave_size,
         "terrain_version": nebula_voxel::ProceduralPlanet::TERRAIN_VERSION,
         "world": world.store().map(|store| store.path().display().to_string()),
         "unsaved_chunks": world.unsaved_chunks(),

@@ -15,6 +15,12 @@
 //!   error bound δ(L) = (s + 2·S·(s − 1)) layers (s = 2^L, S = steepest
 //!   slope, measured by sampling) is derived and tested in
 //!   [`ProceduralPlanet`]'s docs.
+//! - **Caves** under the ground of the procedural planet: two networks of
+//!   winding tunnels (the shallow one opening at the surface in cave
+//!   mouths, arches and overhangs; the deep one swelling into chambers),
+//!   above the sea, regional; `PlanetSettings::cave_size` (0: none). A
+//!   coarse voxel is cave only in a tunnel's core, so thin tunnels vanish
+//!   at coarse LODs instead of leaving a speckle of holes (`caves.rs`).
 //! - **Edits as an overlay** ([`EditedSource`]) on any [`VoxelSource`]: LOD-0
 //!   voxels, seen by coarse LODs through the same far-corner rule, so
 //!   nothing is lost when chunks are regenerated.
@@ -54,6 +60,7 @@
 //! # Ok::<(), nebula_voxel::VoxelError>(())
 //! ```
 
+mod caves;
 mod chunk;
 mod edits;
 mod error;

@@ -23,6 +23,9 @@
 //! spurs of the ranges. H rises with each of the three sums, which the
 //! surface bounds rely on.
 //!
+//! Under the ground, caves (`caves.rs`): air where a tunnel's span of
+//! depths under H holds the voxel's sample, above the sea.
+//!
 //! # LOD sampling rule: the far-corner voxel
 //!
 //! A voxel at LOD `L` is `s = 2^L` lattice cells wide and `s` radial layers
@@ -94,6 +97,7 @@
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
+use crate::caves::{Caves, ColumnCaves};
 use crate::perlin::Fractal;
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 
@@ -124,6 +128,10 @@ pub struct PlanetSettings {
     pub detail_size: f64,
     /// Noise seed: equal settings and seed give identical planets.
     pub seed: u32,
+    /// How tall the shallow cave tunnels are, metres (the deep ones and
+    /// their chambers scale with it; see `caves.rs`): 0 for a planet
+    /// without caves, the heightfield planets saved before caves existed.
+    pub cave_size: f64,
 }
 
 impl PlanetSettings {
@@ -132,7 +140,8 @@ impl PlanetSettings {
     /// across (at most 2,500 km), mountain chains as far apart (at most
     /// 60 km), relief 6 % of the radius (at most 4 km), hills 0.6 % of it
     /// (at most 60 m) and 7.5 % of it across (at most 3 km), seven times
-    /// taller on the mountains.
+    /// taller on the mountains; cave tunnels five voxels tall (at most 1/30 of
+    /// the relief).
     #[must_use]
     pub fn scaled(seed: u32, radius: f64, voxel_size: f64) -> Self {
         Self {
@@ -144,6 +153,9 @@ impl PlanetSettings {
             detail_amplitude: (radius * 0.006).min(60.0),
             detail_size: (radius * 0.075).min(3_000.0),
             seed,
+            // Caves stay above the sea: a planet with low land gets
+            // smaller ones.
+            cave_size: (5.0 * voxel_size).min(radius * 0.06 / 30.0),
         }
     }
 
@@ -167,7 +179,7 @@ impl PlanetSettings {
     /// planet, so adding a setting does not lock old saves out. Empty so
     /// far; a new field goes here with the value that reproduces the
     /// terrain without it.
-    pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] = &[];
+    pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] = &[("cave_size", "0.0")];
 
     /// The settings as canonical `(name, value)` pairs, sorted by name, for
     /// a saved world's identity: independent of field order and of `Debug`
@@ -176,10 +188,20 @@ impl PlanetSettings {
     #[must_use]
     pub fn canonical(&self) -> Vec<(&'static str, String)> {
         // Destructured so that a new field cannot be forgotten here.
-        let Self { radius, voxel_size, amplitude, feature_size, mountain_size, detail_amplitude, detail_size, seed } =
-            self;
+        let Self {
+            radius,
+            voxel_size,
+            amplitude,
+            feature_size,
+            mountain_size,
+            detail_amplitude,
+            detail_size,
+            seed,
+            cave_size,
+        } = self;
         let mut pairs = vec![
             ("amplitude", format!("{amplitude:?}")),
+            ("cave_size", format!("{cave_size:?}")),
             ("detail_amplitude", format!("{detail_amplitude:?}")),
             ("detail_size", format!("{detail_size:?}")),
             ("feature_size", format!("{feature_size:?}")),
@@ -215,6 +237,8 @@ pub struct ProceduralPlanet {
     sum_steps: [f64; 3],
     /// S: steepest height change per lattice step, layers per cell.
     max_slope: f64,
+    /// The caves under the ground (`caves.rs`).
+    caves: Caves,
     /// Heights of recently filled chunk columns, shared by their radial
     /// layers, and by clones (a memo of the same pure function, so a clone
     /// made for an edit keeps what is cached).
@@ -294,7 +318,25 @@ struct Column {
     /// How far from H `height` may be, layers: 0 exactly when every octave
     /// is in; otherwise no voxel or material threshold of the LOD the
     /// column was made for lies within it (`ProceduralPlanet::columns_at`).
+    /// Always 0 under a tunnel (`caves.near`).
     slack: f32,
+    /// The caves under the column at the LOD it was made for.
+    caves: ColumnCaves,
+}
+
+impl Column {
+    /// A column not computed yet.
+    const UNKNOWN: Self = Self { height: f64::NAN, surface: Voxel::AIR, slack: 0.0, caves: ColumnCaves::NONE };
+
+    /// The voxel whose sample centre lies at `centre` layers over the base
+    /// radius, for voxels `span` layers tall: by depth under the column's
+    /// height, less its caves.
+    #[inline]
+    fn voxel(&self, centre: f64, span: f64) -> Voxel {
+        let depth = self.height - centre;
+        let voxel = classify_depth(*self, depth, span);
+        if voxel != Voxel::AIR && self.caves.holds(depth, centre) { Voxel::AIR } else { voxel }
+    }
 }
 
 impl HeightCache {
@@ -396,7 +438,9 @@ impl ProceduralPlanet {
         let ridges = Fractal::ridged(settings.seed.wrapping_add(1), octaves_for(settings.mountain_size), 2.0);
         let hill_octaves = (settings.detail_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 12.0) as usize;
         let hills = Fractal::fbm(settings.seed.wrapping_add(2), hill_octaves, 0.5, std::f64::consts::PI * 2.0 / 3.0);
+        let caves = Caves::new(settings.cave_size, radius, layer_height, max_lod, settings.seed)?;
         let mut planet = Self {
+            caves,
             detail_scale: radius / settings.detail_size,
             hills,
             noise_scale: radius / settings.feature_size,
@@ -464,12 +508,13 @@ impl ProceduralPlanet {
         ]
     }
 
-    /// The ranges of the three noise sums over the square of lattice cells
-    /// `[i − half, i + half] × [j − half, j + half]` on `face`: H over it
+    /// The ranges of the three noise sums over a ball of directions (unit
+    /// centre, radius in radians; [`Self::patch_ball`] of a square of
+    /// lattice cells): H over it
     /// lies between [`Self::combine`] of their ends (`heights`), and its
     /// slope within [`Self::slope_within`] of them.
     ///
-    /// Every direction of the square lies within the angle to its farthest
+    /// Every direction of a square lies within the angle to its farthest
     /// corner or edge middle of the centre's (its edges are great-circle
     /// arcs; 1 % more for rounding), so each noise sum lies in its range over that ball
     /// ([`Fractal::range_near`]), and H, which rises with each sum
@@ -480,7 +525,19 @@ impl ProceduralPlanet {
     /// with a column's size, while H's range is that of the octaves coarse
     /// enough to matter; at LOD 9 on an Earth S allows kilometres where the
     /// terrain varies by hundreds of metres.
-    fn sum_ranges(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> SumRanges {
+    fn sum_ranges(&self, (centre, reach): (nebula_math::DVec3, f64)) -> SumRanges {
+        let p = centre * self.noise_scale;
+        SumRanges {
+            continents: self.continents.range_near(p.to_array(), reach * self.noise_scale),
+            ridges: self.ridges.range_near((centre * self.ridge_scale).to_array(), reach * self.ridge_scale),
+            hills: self.hills.range_near((centre * self.detail_scale).to_array(), reach * self.detail_scale),
+        }
+    }
+
+    /// The ball (unit centre direction, radius in radians) that holds the
+    /// square of lattice cells `[i − half, i + half] × [j − half, j + half]`
+    /// on `face` ([`Self::sum_ranges`]).
+    fn patch_ball(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> (nebula_math::DVec3, f64) {
         let sphere = self.layout.sphere();
         let centre = sphere.direction(face, i, j);
         // The largest angle is the smallest cosine: one `acos`, not eight.
@@ -491,13 +548,7 @@ impl ProceduralPlanet {
             cosine = cosine.min(centre.dot(sphere.direction(face, i + a * half, j + b * half)));
         }
         // A chord is shorter than its angle; 1 % more for rounding.
-        let reach = cosine.clamp(-1.0, 1.0).acos() * 1.01;
-        let p = centre * self.noise_scale;
-        SumRanges {
-            continents: self.continents.range_near(p.to_array(), reach * self.noise_scale),
-            ridges: self.ridges.range_near((centre * self.ridge_scale).to_array(), reach * self.ridge_scale),
-            hills: self.hills.range_near((centre * self.detail_scale).to_array(), reach * self.detail_scale),
-        }
+        (centre, cosine.clamp(-1.0, 1.0).acos() * 1.01)
     }
 
     /// Bounds `(low, high)`, in layers, of H where the sums lie in `ranges`.
@@ -559,7 +610,14 @@ impl ProceduralPlanet {
     /// column kept to the last octave has H bit for bit. Coarse voxels are
     /// tens to thousands of layers tall, so most columns there leave long
     /// before the octaves of a metre or less; at LOD 0 few do.
-    fn columns_at(&self, directions: &[nebula_math::DVec3], span: f64) -> Vec<Column> {
+    fn columns_at(&self, directions: &[nebula_math::DVec3], lod: u8) -> Vec<Column> {
+        let span = self.layout.voxel_span(lod) as f64;
+        // The caves first: a column under a tunnel needs its exact height.
+        let caves: Vec<ColumnCaves> = if self.caves.at_lod(lod) {
+            directions.iter().map(|d| self.caves.column(*d, span)).collect()
+        } else {
+            vec![ColumnCaves::NONE; directions.len()]
+        };
         let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
         let fractals = [&self.continents, &self.ridges, &self.hills];
         let mut batches = [
@@ -568,7 +626,7 @@ impl ProceduralPlanet {
             self.hills.begin(&points(self.detail_scale)),
         ];
         let rounds = fractals.iter().map(|f| f.octaves()).max().unwrap_or(0);
-        let mut columns = vec![Column { height: f64::NAN, surface: Voxel::AIR, slack: 0.0 }; directions.len()];
+        let mut columns = vec![Column::UNKNOWN; directions.len()];
         let mut open: Vec<usize> = (0..directions.len()).collect();
         // A look costs about what an octave does: none before the octaves
         // left could, even at best, leave a voxel's height of room (the fBm
@@ -592,6 +650,9 @@ impl ProceduralPlanet {
             }
             let continents_spread = voxel_m / (LAND_SLOPE * self.settings.amplitude);
             open.retain(|&k| {
+                if !last && caves[k].near {
+                    return true;
+                }
                 let (c_low, c_high) = self.continents.bounds(&batches[0], k);
                 // The continents alone spread H by at least
                 // LAND_SLOPE·amplitude per unit (`combine`, short of its clamp): a spread of a voxel or
@@ -624,7 +685,7 @@ impl ProceduralPlanet {
                 } else {
                     ((0.5 * (high - low) / self.layer_height * (1.0 + 1e-6)) as f32).max(f32::MIN_POSITIVE)
                 };
-                columns[k] = Column { slack, ..self.sample(height, climate) };
+                columns[k] = Column { slack, caves: caves[k], ..self.sample(height, climate) };
                 false
             });
             if open.is_empty() {
@@ -689,12 +750,22 @@ impl ProceduralPlanet {
         let direction = self.column_direction(face, lod, ci, cj);
         let [continents, ridges, hills] = self.sums_at(direction);
         let climate = Climate { sin_latitude: direction.z, continents, mountains: self.mountains(continents, ridges) };
-        self.sample(self.combine(continents, ridges, hills), climate)
+        let caves = if self.caves.at_lod(lod) {
+            self.caves.column(direction, self.layout.voxel_span(lod) as f64)
+        } else {
+            ColumnCaves::NONE
+        };
+        Column { caves, ..self.sample(self.combine(continents, ridges, hills), climate) }
     }
 
     /// The column whose terrain height is `height_m` metres, in `climate`.
     fn sample(&self, height_m: f64, climate: Climate) -> Column {
-        Column { height: height_m / self.layer_height, surface: self.surface(height_m, climate), slack: 0.0 }
+        Column {
+            height: height_m / self.layer_height,
+            surface: self.surface(height_m, climate),
+            slack: 0.0,
+            caves: ColumnCaves::NONE,
+        }
     }
 
     /// Where [`Self::surface`] changes its answer at `sin_latitude`.
@@ -809,8 +880,13 @@ impl ProceduralPlanet {
                 return None;
             }
             // Made for the parent's voxels, twice as tall: it may leave a
-            // threshold of these open.
+            // threshold of these open. Its caves are the parent's LOD's
+            // (and none past the caves' coarsest LOD): only a column with
+            // no tunnel near lends itself where these voxels can be caves.
             let known = heights[(qj * padded + qi) as usize];
+            if self.caves.at_lod(column.lod) && (known.caves.near || !self.caves.at_lod(parent.lod)) {
+                return None;
+            }
             let slack = f64::from(known.slack);
             (!self.undecided_voxels(known.height - slack, known.height + slack, span)).then_some(known)
         };
@@ -850,8 +926,7 @@ impl ProceduralPlanet {
                 .collect()
         };
         let (warped_i, warped_j) = (warped(base_i), warped(base_j));
-        let mut heights =
-            vec![Column { height: f64::NAN, surface: Voxel::AIR, slack: 0.0 }; (padded * padded) as usize];
+        let mut heights = vec![Column::UNKNOWN; (padded * padded) as usize];
         let mut missing = Vec::with_capacity(heights.len());
         let mut directions = Vec::with_capacity(heights.len());
         for (n, height) in (0..padded * padded).zip(&mut heights) {
@@ -868,7 +943,7 @@ impl ProceduralPlanet {
                 });
             }
         }
-        for (n, computed) in missing.into_iter().zip(self.columns_at(&directions, span)) {
+        for (n, computed) in missing.into_iter().zip(self.columns_at(&directions, column.lod)) {
             heights[n] = computed;
         }
         let heights: Arc<[Column]> = heights.into();
@@ -882,7 +957,7 @@ impl ProceduralPlanet {
     /// surface material at every LOD (no colour pop).
     fn classify(&self, column: Column, h: i64, lod: u8) -> Voxel {
         let span = self.layout.voxel_span(lod) as f64;
-        classify_depth(column, column.height - corner_centre(h, span), span)
+        column.voxel(corner_centre(h, span), span)
     }
 
     /// Each noise sum's steepest change between neighbouring lattice cells
@@ -1007,7 +1082,7 @@ fn mountain_mask(continents: f64) -> f64 {
     smoothstep((continents - MOUNTAIN_START) / MOUNTAIN_INLAND)
 }
 
-fn smoothstep(x: f64) -> f64 {
+pub(crate) fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
 }
@@ -1039,7 +1114,7 @@ impl VoxelSource for ProceduralPlanet {
                 let centre = corner_centre(base_h + y as i64, span);
                 let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
                 for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
-                    *voxel = classify_depth(*column, column.height - centre, span);
+                    *voxel = column.voxel(centre, span);
                 }
             }
         }
@@ -1062,7 +1137,8 @@ impl VoxelSource for ProceduralPlanet {
         let centre = ((f64::from(column.x) + 0.5) * chunk, (f64::from(column.y) + 0.5) * chunk);
         // The sums' ranges reach a voxel beyond the column, for the
         // neighbouring voxel columns below.
-        let ranges = self.sum_ranges(column.face, centre, step + span);
+        let ball = self.patch_ball(column.face, centre, step + span);
+        let ranges = self.sum_ranges(ball);
         let slope = self.slope_within(ranges).min(self.max_slope);
         let margin = slope * step;
         let (mut low, mut high) = self.heights(ranges);
@@ -1085,7 +1161,18 @@ impl VoxelSource for ProceduralPlanet {
         // one voxel (span cells) further out: S·span lower still, and its
         // top again up to a voxel below its H.
         let neighbour = slope * span + span;
-        let min_layer = (low.max(lowest) + 0.5 - span - neighbour).floor() as i64;
+        let mut min_layer = (low.max(lowest) + 0.5 - span - neighbour).floor() as i64;
+        // Cave air lies at most `deepest` layers under its column's H
+        // (which is above `low − neighbour` over the patch and a voxel
+        // beyond), above the sea; the rock under and beside it a voxel
+        // lower still.
+        if self.caves.at_lod(column.lod)
+            && high + span >= crate::caves::SEA_MARGIN_LAYERS
+            && self.caves.may_be_near(ball.0, ball.1)
+        {
+            let cave_floor = (low.max(lowest) - neighbour - self.caves.deepest() - span).floor() as i64 - 1;
+            min_layer = min_layer.min(cave_floor);
+        }
         let max_layer = (high.min(highest) + 0.5).ceil() as i64;
         let sphere = self.layout.sphere();
         // Every column's H is below `high`; where that is under the sea and under the snow line (which dips
@@ -1115,7 +1202,11 @@ impl VoxelSource for ProceduralPlanet {
         // Or, past some LOD, the whole relief: no top is further from
         // another than that (module docs).
         let relief = self.relief() / self.layer_height;
-        (span + (2.0 * self.max_slope * (span - 1.0)).min(relief)) * self.layer_height
+        // Where a chunk of this LOD is solid across a seam from a finer
+        // one's cave (or mouth), the finer surface lies as deep as the
+        // deepest cave air (`caves.rs`).
+        let caves = if self.caves.coarsest_lod().is_some() { self.caves.deepest() + span } else { 0.0 };
+        (span + (2.0 * self.max_slope * (span - 1.0)).min(relief) + caves) * self.layer_height
     }
 }
 
@@ -1173,7 +1264,7 @@ mod tests {
                 let directions: Vec<_> = (0..34 * 34)
                     .map(|k| planet.column_direction(face, lod, base.0 + k % 34, base.1 + k / 34))
                     .collect();
-                let columns = planet.columns_at(&directions, span);
+                let columns = planet.columns_at(&directions, lod);
                 let mut exact = 0;
                 for (direction, column) in directions.iter().zip(&columns) {
                     let truth = planet.height_at(*direction);

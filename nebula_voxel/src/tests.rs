@@ -5,6 +5,7 @@ use std::sync::OnceLock;
 use proptest::prelude::*;
 
 use crate::*;
+use nebula_math::unit_random;
 
 fn small() -> &'static ProceduralPlanet {
     static PLANET: OnceLock<ProceduralPlanet> = OnceLock::new();
@@ -159,9 +160,9 @@ fn biomes_follow_latitude_coasts_and_mountains() {
     let mut land = 0;
     while land < 6000 {
         let d = DVec3::new(
-            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
-            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
-            nebula_math::unit_random(&mut state) * 2.0 - 1.0,
+            unit_random(&mut state) * 2.0 - 1.0,
+            unit_random(&mut state) * 2.0 - 1.0,
+            unit_random(&mut state) * 2.0 - 1.0,
         );
         if !(0.1..=1.0).contains(&d.length()) || planet.height_at(d.normalize()) < 0.0 {
             continue;
@@ -208,7 +209,7 @@ fn max_slope_holds_where_the_mountains_are_steepest() {
         let height = |face: CubeFace, i: f64, j: f64| planet.height_at(sphere.direction(face, i, j)) / layer;
         let high_up = 0.3 * planet.settings().amplitude / layer;
         let mut state = 41_u64;
-        let mut next = || nebula_math::unit_random(&mut state);
+        let mut next = || unit_random(&mut state);
         let step_at = |face: CubeFace, i: f64, j: f64| {
             let (i, j) = (i.clamp(0.0, n - 2.0), j.clamp(0.0, n - 2.0));
             let here = height(face, i, j);
@@ -502,7 +503,7 @@ fn earth_surface_bounds_hold_the_tops_and_stay_narrow() {
     let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
     let layout = planet.layout();
     let mut state = 23_u64;
-    let mut next = || nebula_math::unit_random(&mut state);
+    let mut next = || unit_random(&mut state);
     let mut ratios = Vec::new();
     for n in 0..150 {
         let lod = (n % 15) as u8;
@@ -545,7 +546,7 @@ fn sea_bed_below_holds_nothing_but_sea_bed_below() {
     let mut state = 17_u64;
     let (mut sea_bed, mut polar_ice) = (0, 0);
     for n in 0..200 {
-        let lod = 2 + (nebula_math::unit_random(&mut state) * 10.0) as u8;
+        let lod = 2 + (unit_random(&mut state) * 10.0) as u8;
         let per_edge = f64::from(layout.chunks_per_edge(lod));
         // Half the columns near a pole, where the snow line is under the sea.
         let (face, spread) = if n % 2 == 0 {
@@ -553,9 +554,9 @@ fn sea_bed_below_holds_nothing_but_sea_bed_below() {
         } else {
             (CubeFace::ALL[n / 2 % 6], 1.0)
         };
-        let mut at = || ((0.5 + (nebula_math::unit_random(&mut state) - 0.5) * spread) * per_edge) as u32;
+        let mut at = || ((0.5 + (unit_random(&mut state) - 0.5) * spread) * per_edge) as u32;
         let column = ChunkColumn { face, lod, x: at(), y: at() };
-        let below = sea - 4.0 * nebula_math::unit_random(&mut state) * layout.sphere().layer_height();
+        let below = sea - 4.0 * unit_random(&mut state) * layout.sphere().layer_height();
         let (materials, top) = surface_materials(planet, column);
         if planet.sea_bed_below(column, below).unwrap() {
             sea_bed += 1;
@@ -687,7 +688,7 @@ fn pick_by_sampling(
 /// straight down to grazing and a few upwards.
 fn ground_rays(planet: &ProceduralPlanet, count: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
     let mut state = seed;
-    let mut unit = move || nebula_math::unit_random(&mut state);
+    let mut unit = move || unit_random(&mut state);
     (0..count)
         .map(|n| {
             let mut direction = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
@@ -796,7 +797,7 @@ fn pick_sees_a_block_placed_far_above_the_terrain() {
     for planet in [small().clone(), ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap()] {
         let mut edited = EditedSource::new(planet.clone());
         let mut state = 0xb10c_u64;
-        let mut unit = move || nebula_math::unit_random(&mut state);
+        let mut unit = move || unit_random(&mut state);
         for _ in 0..8 {
             let up = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
             let block = planet.surface_point(up) + up * 300.0;
@@ -823,11 +824,12 @@ fn a_ray_straight_up_along_an_axis_misses() {
 
 /// FNV-1a over the materials of chunks around the surface of a few
 /// columns (LOD 0 and 4, both presets, edges and corners among them).
-fn terrain_fingerprint() -> u64 {
+fn terrain_fingerprint(caves: bool) -> u64 {
     let mut hash = 0xcbf2_9ce4_8422_2325_u64;
     let mut chunk = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
     for settings in [PlanetSettings::small(7), PlanetSettings::earth(11)] {
-        let planet = ProceduralPlanet::new(settings).unwrap();
+        let cave_size = if caves { settings.cave_size } else { 0.0 };
+        let planet = ProceduralPlanet::new(PlanetSettings { cave_size, ..settings }).unwrap();
         let layout = *planet.layout();
         for (n, face) in CubeFace::ALL.into_iter().enumerate() {
             for lod in [0u8, 4] {
@@ -856,17 +858,19 @@ fn the_terrain_is_the_one_its_version_names() {
     // `ProceduralPlanet::TERRAIN_VERSION`. This fingerprint of the voxels
     // changes when the terrain code does: then bump TERRAIN_VERSION (old
     // worlds are refused, never replayed onto other ground) and record the
-    // new fingerprint here with its version.
-    const FINGERPRINTS: &[(u32, u64)] = &[(1, 0xb127_8bc9_e17b_fc98)];
-    let fingerprint = terrain_fingerprint();
-    let recorded = FINGERPRINTS.iter().find(|(version, _)| *version == ProceduralPlanet::TERRAIN_VERSION);
+    // new fingerprints here with its version: without caves (the planets
+    // saved before caves existed, `cave_size` 0) and with the presets' caves.
+    const FINGERPRINTS: &[(u32, u64, u64)] = &[(1, 0xb127_8bc9_e17b_fc98, 0x5cfd_b7e2_ff28_b864)];
+    let fingerprints = (terrain_fingerprint(false), terrain_fingerprint(true));
+    let recorded = FINGERPRINTS.iter().find(|(version, ..)| *version == ProceduralPlanet::TERRAIN_VERSION);
     assert_eq!(
-        recorded.map(|(_, f)| *f),
-        Some(fingerprint),
-        "the terrain changed ({fingerprint:#x}): bump ProceduralPlanet::TERRAIN_VERSION and record it"
+        recorded.map(|&(_, without, with)| (without, with)),
+        Some(fingerprints),
+        "the terrain changed ({fingerprints:#x?}): bump ProceduralPlanet::TERRAIN_VERSION and record it"
     );
+    assert_ne!(fingerprints.0, fingerprints.1, "the caves are not in the fingerprint");
     // Versions that were released stay distinct.
-    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 != w[1].1));
+    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 != w[1].1 && w[0].2 != w[1].2));
 }
 
 #[test]
@@ -874,7 +878,7 @@ fn canonical_settings_name_every_field_once_sorted() {
     let settings = PlanetSettings::earth(11);
     let pairs = settings.canonical();
     assert!(pairs.windows(2).all(|w| w[0].0 < w[1].0), "{pairs:?}");
-    assert_eq!(pairs.len(), 8);
+    assert_eq!(pairs.len(), 9);
     // Values read back to the same settings, and a change shows.
     let radius: f64 = pairs.iter().find(|(n, _)| *n == "radius").unwrap().1.parse().unwrap();
     assert_eq!(radius, settings.radius);
@@ -882,4 +886,155 @@ fn canonical_settings_name_every_field_once_sorted() {
     assert_ne!(other.canonical(), pairs);
     let nudged = PlanetSettings { amplitude: settings.amplitude.next_up(), ..settings };
     assert_ne!(nudged.canonical(), pairs);
+}
+
+/// Marches `count` random land columns (H above sea level) of `planet` at
+/// LOD 0 from above the ground down to `depth_m` under it, and returns the
+/// share holding air under solid ground and the deepest such air under
+/// the column's top, metres.
+fn air_under_the_ground(planet: &ProceduralPlanet, count: usize, depth_m: f64, seed: u64) -> (f64, f64) {
+    let layout = planet.layout();
+    let sphere = layout.sphere();
+    let layer = sphere.layer_height();
+    let per_edge = layout.voxels_per_edge(0);
+    let mut state = seed;
+    let (mut land, mut hollow, mut deepest) = (0, 0, 0.0_f64);
+    while land < count {
+        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
+        let (i, j) = (
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+        );
+        let height = planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5));
+        if height < 2.0 * layer {
+            continue;
+        }
+        land += 1;
+        let top = (height / layer).floor() as i64 + 1;
+        let voxel = |h: i64| planet.voxel(VoxelCoord { face, lod: 0, i, j, h: h as i32 }).unwrap();
+        let mut ground = None;
+        let mut found = false;
+        for h in (top - (depth_m / layer) as i64 - 2..=top).rev() {
+            let solid = voxel(h).is_solid();
+            match ground {
+                None if solid => ground = Some(h),
+                Some(g) if !solid => {
+                    found = true;
+                    deepest = deepest.max((g - h) as f64 * layer);
+                }
+                _ => {}
+            }
+        }
+        hollow += usize::from(found);
+    }
+    (hollow as f64 / count as f64, deepest)
+}
+
+#[test]
+fn caves_hollow_the_land_and_none_without_them() {
+    for settings in [PlanetSettings::earth(3), PlanetSettings::small(3)] {
+        let planet = ProceduralPlanet::new(settings.clone()).unwrap();
+        let (share, deepest) = air_under_the_ground(&planet, 400, 300.0, 77);
+        println!(
+            "radius {} m: {:.1} % of land columns hold air under the ground, the deepest {deepest:.1} m down",
+            settings.radius,
+            share * 100.0
+        );
+        assert!(share >= 0.04, "{share}");
+        assert!(deepest >= 15.0, "{deepest}");
+        let flat = ProceduralPlanet::new(PlanetSettings { cave_size: 0.0, ..settings }).unwrap();
+        assert_eq!(
+            air_under_the_ground(&flat, 100, 300.0, 77).0,
+            0.0,
+            "a heightfield planet has no air under its ground"
+        );
+    }
+}
+
+/// LOD-0 voxels of cave air (air under solid ground) in land columns of
+/// `planet`, found by marching random columns down from the ground.
+fn cave_voxels(planet: &ProceduralPlanet, count: usize, seed: u64) -> Vec<VoxelCoord> {
+    let layout = planet.layout();
+    let sphere = layout.sphere();
+    let layer = sphere.layer_height();
+    let per_edge = layout.voxels_per_edge(0);
+    let mut state = seed;
+    let mut found = Vec::new();
+    while found.len() < count {
+        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
+        let (i, j) = (
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+        );
+        let height = planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5)) / layer;
+        if height < 2.0 {
+            continue;
+        }
+        let top = height.floor() as i32;
+        let caves =
+            (top - 60..top).filter(|&h| !planet.voxel(VoxelCoord { face, lod: 0, i, j, h }).unwrap().is_solid());
+        found.extend(caves.map(|h| VoxelCoord { face, lod: 0, i, j, h }).take(1));
+    }
+    found
+}
+
+/// The LOD rule for caves (module docs of `caves.rs`): a coarse voxel is
+/// cave air only in a tunnel's core. Against the majority of the LOD-0
+/// voxels it stands for, the core rule leaves far fewer coarse voxels air
+/// over mostly solid ground (the speckle of holes) than the far-corner
+/// rule (a coarse voxel is its far-corner LOD-0 voxel), and gets the
+/// coarse voxels around caves right as often or more.
+#[test]
+fn coarse_cave_voxels_are_mostly_cave_at_lod_0() {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    // The same ground without caves: a voxel solid there and air here is cave.
+    let flat = ProceduralPlanet::new(PlanetSettings { cave_size: 0.0, ..planet.settings().clone() }).unwrap();
+    let caves = cave_voxels(&planet, 24, 31);
+    for lod in 1u8..=3 {
+        let s = 1i64 << lod;
+        // (coarse voxels, air by the core rule over a mostly solid block,
+        // same by the far corner, wrong by the core rule, wrong by the far corner)
+        let (mut total, mut core_holes, mut corner_holes, mut core_wrong, mut corner_wrong) = (0, 0, 0, 0, 0);
+        let (mut core_air, mut corner_air) = (0, 0);
+        for cave in &caves {
+            let (ci, cj, ch) = (i64::from(cave.i) / s, i64::from(cave.j) / s, i64::from(cave.h).div_euclid(s));
+            for (di, dj, dh) in (0..27).map(|n| (n % 3 - 1, n / 3 % 3 - 1, n / 9 - 1)) {
+                let (a, b, c) = (ci + di, cj + dj, ch + dh);
+                let coarse_at = VoxelCoord { face: cave.face, lod, i: a as u32, j: b as u32, h: c as i32 };
+                // Under the ground: whatever air it holds is cave.
+                if !flat.voxel(coarse_at).unwrap().is_solid() {
+                    continue;
+                }
+                let coarse = planet.voxel(coarse_at).unwrap();
+                let lod0 = |source: &ProceduralPlanet, i: i64, j: i64, h: i64| {
+                    source.voxel(VoxelCoord { face: cave.face, lod: 0, i: i as u32, j: j as u32, h: h as i32 }).unwrap()
+                };
+                let corner = lod0(&planet, (a + 1) * s - 1, (b + 1) * s - 1, (c + 1) * s - 1);
+                // LOD-0 cave air in the block the coarse voxel stands for.
+                let mut air = 0;
+                for n in 0..s * s * s {
+                    let (x, y, z) = (a * s + n % s, b * s + n / s % s, c * s + n / (s * s));
+                    air += i64::from(!lod0(&planet, x, y, z).is_solid() && lod0(&flat, x, y, z).is_solid());
+                }
+                let majority_air = 2 * air > s * s * s;
+                let mostly_solid = 2 * air < s * s * s;
+                total += 1;
+                core_air += i32::from(!coarse.is_solid());
+                corner_air += i32::from(!corner.is_solid());
+                core_holes += i32::from(!coarse.is_solid() && mostly_solid);
+                corner_holes += i32::from(!corner.is_solid() && mostly_solid);
+                core_wrong += i32::from(coarse.is_solid() == majority_air);
+                corner_wrong += i32::from(corner.is_solid() == majority_air);
+            }
+        }
+        println!(
+            "LOD {lod}: {total} coarse voxels around caves; air over mostly solid LOD 0 (holes): core rule {core_holes} of {core_air} air, \
+             far corner {corner_holes} of {corner_air}; against the LOD-0 majority: core rule {core_wrong} wrong, far corner {corner_wrong}"
+        );
+        assert!(
+            core_holes * 2 <= corner_holes.max(1),
+            "LOD {lod}: the core rule leaves holes: {core_holes} vs {corner_holes}"
+        );
+        assert!(core_wrong <= corner_wrong, "LOD {lod}: {core_wrong} vs {corner_wrong}");
+    }
 }

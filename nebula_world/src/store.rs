@@ -89,10 +89,28 @@ impl Terrain {
             version: ProceduralPlanet::TERRAIN_VERSION,
             settings: owned(settings.canonical()),
             added_settings: owned(PlanetSettings::ADDED_SETTINGS.iter().map(|&(n, v)| (n, v.to_owned())).collect()),
-            // Format 1 keyed worlds by the settings' Debug text; the terrain
-            // code did not change between the last format-1 build and
-            // terrain version 1.
-            legacy: (ProceduralPlanet::TERRAIN_VERSION == 1).then(|| format!("{settings:?}")),
+            // Format 1 keyed worlds by the settings' Debug text (of the
+            // fields it had: a planet without caves); the terrain code did
+            // not change between the last format-1 build and terrain
+            // version 1.
+            legacy: (ProceduralPlanet::TERRAIN_VERSION == 1 && settings.cave_size == 0.0).then(|| {
+                let PlanetSettings {
+                    radius,
+                    voxel_size,
+                    amplitude,
+                    feature_size,
+                    mountain_size,
+                    detail_amplitude,
+                    detail_size,
+                    seed,
+                    cave_size: _,
+                } = settings;
+                format!(
+                    "PlanetSettings {{ radius: {radius:?}, voxel_size: {voxel_size:?}, amplitude: {amplitude:?}, \
+                     feature_size: {feature_size:?}, mountain_size: {mountain_size:?}, \
+                     detail_amplitude: {detail_amplitude:?}, detail_size: {detail_size:?}, seed: {seed:?} }}"
+                )
+            }),
         }
     }
 

@@ -313,9 +313,10 @@ fn a_world_knows_its_terrain() {
     let refused = World::open(PlanetSettings::small(4), Some(&path)).unwrap_err();
     assert!(refused.to_string().contains("seed=3") && refused.to_string().contains("seed=4"), "{refused}");
 
-    // A format-1 world (settings' Debug text, before terrain versions) of
-    // this planet opens with its edits and is rewritten as this format;
-    // one of another planet is refused untouched.
+    // A format-1 world (settings' Debug text, before terrain versions and
+    // caves) of this planet without caves opens with its edits and is
+    // rewritten as this format; one of another planet, or this one with
+    // caves, is refused untouched.
     let path = scratch("format-1");
     let ground = planet().surface_point(DVec3::Z);
     let at = planet().layout().voxel_at(ground).unwrap();
@@ -335,7 +336,16 @@ fn a_world_knows_its_terrain() {
         }
         txn.commit().unwrap();
     };
-    write_v1(&path, &format!("{settings:?}"));
+    // What format-1 builds wrote: the Debug text of the settings before
+    // `cave_size`, its last field, was added.
+    let heightfield = PlanetSettings { cave_size: 0.0, ..settings.clone() };
+    let format_1_text = |settings: &PlanetSettings| format!("{settings:?}").replace(", cave_size: 0.0 }", " }");
+    assert!(!format_1_text(&heightfield).contains("cave"));
+    write_v1(&path, &format_1_text(&heightfield));
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(matches!(World::open(settings.clone(), Some(&path)), Err(WorldError::OtherPlanet { .. })));
+    assert!(std::fs::read(&path).unwrap() == bytes, "a format-1 file of another planet was modified");
+    let settings = heightfield;
     let opened = World::open(settings.clone(), Some(&path)).unwrap();
     assert_eq!(opened.source().voxel(at).unwrap(), Voxel::SNOW);
     drop(opened);
@@ -353,7 +363,7 @@ fn a_world_knows_its_terrain() {
     drop(db);
     assert_eq!(World::open(settings.clone(), Some(&path)).unwrap().source().voxel(at).unwrap(), Voxel::SNOW);
     let path = scratch("format-1-other");
-    write_v1(&path, &format!("{:?}", PlanetSettings::small(4)));
+    write_v1(&path, &format_1_text(&PlanetSettings { cave_size: 0.0, ..PlanetSettings::small(4) }));
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings, Some(&path)), Err(WorldError::OtherPlanet { .. })));
     assert!(std::fs::read(&path).unwrap() == bytes, "a foreign format-1 file was modified");

@@ -22,7 +22,7 @@ use nebula_render::DebugView;
 use nebula_render::context::GpuContext;
 
 use nebula_math::DVec3;
-use nebula_voxel::{PlanetSettings, ProceduralPlanet};
+use nebula_voxel::{PlanetSettings, ProceduralPlanet, VoxelSource};
 
 const SENTINEL: [u8; 3] = [255, 0, 255];
 const SIZE: (u32, u32) = (640, 400);
@@ -556,7 +556,7 @@ fn live_edits_show_within_frames_and_no_frame_has_a_hole() {
 /// nearest first.
 fn visible_lod0_seams(app: &PlanetApp, world: &nebula_world::World, eye: DVec3) -> Vec<nebula_voxel::VoxelHit> {
     use nebula_math::FaceDirection;
-    let sphere = *nebula_voxel::VoxelSource::layout(world.source()).sphere();
+    let sphere = *world.source().layout().sphere();
     let base = world.source().base();
     let mut seams: Vec<nebula_voxel::VoxelHit> = app
         .draw_list()
@@ -987,5 +987,74 @@ fn thousands_of_chunks_are_a_handful_of_draw_calls_drawing_the_same_picture() {
             "pose {n}: {} pixels differ",
             changed_pixels(&direct.rgba, &indirect.rgba)
         );
+    }
+}
+
+/// An eye inside a generated cave of `planet` and a point it looks at: the
+/// middle of a LOD-0 voxel of cave air (air under solid ground, with air
+/// over it for the head) in a random land column, looking level along the
+/// tunnel (of eight headings, the one with the farthest rock, up to 60 m).
+fn inside_a_cave(planet: &ProceduralPlanet, rng: &mut Rng) -> (DVec3, DVec3) {
+    let layout = planet.layout();
+    let sphere = layout.sphere();
+    let per_edge = f64::from(layout.voxels_per_edge(0));
+    loop {
+        let face = nebula_voxel::CubeFace::ALL[(rng.next() * 6.0) as usize % 6];
+        let (i, j) = ((rng.next() * per_edge) as u32, (rng.next() * per_edge) as u32);
+        let up = sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5);
+        let top = (planet.height_at(up) / sphere.layer_height()).floor() as i32;
+        let air = |h: i32| !planet.voxel(nebula_voxel::VoxelCoord { face, lod: 0, i, j, h }).expect("voxel").is_solid();
+        // Cave air two voxels tall, at least 3 voxels under solid ground.
+        let Some(h) = (top - 50..top - 3).find(|&h| air(h) && air(h + 1) && !air(top - 1)) else { continue };
+        let eye = up * sphere.layer_radius(f64::from(h) + 0.5);
+        let east = up.any_orthonormal_vector();
+        let north = up.cross(east);
+        let (heading, _) = (0..8)
+            .map(|k| {
+                let a = f64::from(k) * std::f64::consts::FRAC_PI_4;
+                let heading = east * a.cos() + north * a.sin();
+                let reach =
+                    nebula_voxel::pick(planet, eye, heading, 60.0).expect("pick").map_or(60.0, |hit| hit.distance);
+                (heading, reach)
+            })
+            .fold((east, -1.0), |best, next| if next.1 > best.1 { next } else { best });
+        return (eye, eye + heading * 10.0);
+    }
+}
+
+#[test]
+fn views_from_inside_earth_caves_show_all_the_rock_near_them_and_no_crack() {
+    // From inside generated caves (random ones, a fixed seed), settled: no
+    // crack pixel, and no background pixel whose ray meets LOD-0 rock
+    // within 60 m (what the voxels hold there must be drawn: the chunks
+    // under the ground around the cave, the tunnel's walls).
+    if !adapter_or_skip("views_from_inside_earth_caves_show_all_the_rock_near_them_and_no_crack") {
+        return;
+    }
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
+    let mut rng = Rng(0x000c_a7e5);
+    for n in 0..3 {
+        let (eye, look_at) = inside_a_cave(&planet, &mut rng);
+        let shot = shot(eye, look_at, 70.0);
+        let name = format!("earth-inside-cave-{n}");
+        let picture = settled(&name, &settings, &shot, DrawOptions::default());
+        assert_eq!(picture.figures.crack_pixels, Some(0), "{name}: cracks at {:?}", picture.figures.cracks.samples);
+        let camera = nebula_lod::Camera { position: eye, forward: look_at - eye, up: eye.normalize(), aspect: 1.6 };
+        let (mut background, mut missing) = (0, Vec::new());
+        for (k, pixel) in picture.rgba.chunks_exact(4).enumerate() {
+            if pixel[..3] != SENTINEL {
+                continue;
+            }
+            background += 1;
+            let (x, y) = (k as u32 % SIZE.0, k as u32 / SIZE.0);
+            let ray = camera.pixel_ray(shot.fov_y_degrees, SIZE, (x, y));
+            if nebula_voxel::pick(&planet, eye, ray, 60.0).expect("pick").is_some() {
+                missing.push((x, y));
+            }
+        }
+        println!("{name}: {background} background pixels, {} of them with rock within 60 m", missing.len());
+        assert!(missing.is_empty(), "{name}: rock within 60 m not drawn at {:?}", &missing[..missing.len().min(8)]);
+        assert!(background < picture.rgba.len() / 4, "{name}: the view is mostly background");
     }
 }

@@ -1,0 +1,336 @@
+//! Caves under a [`ProceduralPlanet`](crate::ProceduralPlanet)'s ground:
+//! winding tunnels, chambers, and mouths where they reach the surface.
+//!
+//! # Shape
+//!
+//! Two networks of tunnels. Each follows the lines on the sphere where a
+//! smooth noise `n` crosses zero (the "worm" lines of ridged noise: long,
+//! winding, branching), at a depth below the local surface `H` that wanders
+//! with a second noise, in a tunnel whose width and height swell with a
+//! third into chambers:
+//!
+//! ```text
+//!   e     = |n(d)| / (w · (1 + W·swell(d)) · region(d))     < 1 within the tunnel's width
+//!   half  = r · (1 + R·swell(d)) · √(1 − e²)                 elliptic cross-section, layers
+//!   air   ⇔ |depth − c(d)| < half,  depth = H − voxel centre (layers),
+//!           and the voxel lies above sea level
+//! ```
+//!
+//! The shallow network's centre `c` wanders from the surface down to a few
+//! tunnel heights: where it rises within its half height of the ground the
+//! tunnel opens (cave mouths, and the roofs left between two openings:
+//! arches and overhangs). The deep network lies under it, never touching
+//! it, and swells into larger chambers. `region` is a low-frequency noise
+//! ramped to `[0, 1]`: about four fifths of the land has caves, the rest none.
+//! Caves stay above the sea (the renderer's opaque sea is a sphere at sea
+//! level), so an ocean is never hollow and the sea never hides an open cave.
+//!
+//! Everything is a function of a voxel column's direction (its far-corner
+//! LOD-0 column, as for the heights) and its height `H`, so a column's
+//! caves are computed once per column with its height and shared by the
+//! chunk column's radial layers. A column with a tunnel over it has its
+//! height computed exactly (every octave), so the depth is the same to the
+//! bit wherever the voxel is read.
+//!
+//! # LOD rule: ground stays solid unless the cave is large at that LOD
+//!
+//! A voxel at LOD `L` is `s = 2^L` cells wide and layers tall; it samples
+//! its far-corner LOD-0 voxel as the rest of the terrain does. It is cave
+//! air only where that sample lies in the tunnel's **core**: the
+//! cross-section shrunk by `(s − 1)/2` layers top and bottom, and its width
+//! by `s − 1` cells (`e < 1 − (s − 1)/(2·half-width in cells)`). At LOD 0
+//! the core is the tunnel. So a tunnel narrower or lower than about a
+//! coarse voxel leaves no air at that LOD instead of a speckle of holes
+//! (what sampling one voxel in `s³` gives where the tunnel is thinner than
+//! `s`: the far-corner rule), and a chamber stays open at LODs whose voxels
+//! it holds. Past [`Caves::coarsest_lod`] no cave survives and nothing is
+//! evaluated. The measurements behind the choice are in the tests
+//! (`coarse_cave_voxels_are_mostly_cave_at_lod_0`).
+//!
+//! The price is a pop where a chunk switches LOD over a cave (the coarse
+//! chunk's cave is its fine cave's core), and the error bound δ(L) and
+//! the skirts: where a coarse chunk is solid across a seam from a fine
+//! chunk's tunnel, the seam is open down to the tunnel, so δ(L ≥ 1) reaches
+//! the deepest cave air ([`Caves::deepest`]).
+
+use nebula_math::DVec3;
+
+use crate::VoxelError;
+use crate::perlin::Fractal;
+use crate::planet::smoothstep;
+
+/// Caves open only above this altitude (layers over the base radius):
+/// their air stays above the sea.
+pub(crate) const SEA_MARGIN_LAYERS: f64 = 1.0;
+
+/// Cave spans are stored in 1/64 layer (i16): enough for determinism, and
+/// caves down to 511 layers.
+const SPAN_UNITS: f64 = 64.0;
+
+/// The region noise's value below which a place has no caves, and the
+/// width of the ramp above it.
+const REGION_FROM: f64 = -0.3;
+const REGION_RAMP: f64 = 0.3;
+
+/// The caves of one voxel column at one LOD: up to one span of air per
+/// network, as depths below the column's height, in 1/64 layer.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct ColumnCaves {
+    /// `[top, bottom]` depths of each network's air (`top < bottom`), or
+    /// `[0, 0]` for none.
+    spans: [[i16; 2]; 2],
+    /// A tunnel passes over the column at LOD 0 (whatever this LOD keeps):
+    /// its height must be exact, and a column of another LOD at the same
+    /// place cannot lend its caves.
+    pub(crate) near: bool,
+}
+
+impl ColumnCaves {
+    /// No cave.
+    pub(crate) const NONE: Self = Self { spans: [[0; 2]; 2], near: false };
+
+    /// Whether a voxel whose sample centre lies `depth` layers under the
+    /// column's height, at `altitude` layers over the base radius, is cave
+    /// air.
+    #[inline]
+    pub(crate) fn holds(&self, depth: f64, altitude: f64) -> bool {
+        if !self.near || altitude < SEA_MARGIN_LAYERS {
+            return false;
+        }
+        let depth = depth * SPAN_UNITS;
+        self.spans.iter().any(|&[top, bottom]| f64::from(top) < depth && depth < f64::from(bottom))
+    }
+}
+
+/// One network of tunnels (module docs), lengths in layers and cells.
+#[derive(Clone, Debug)]
+struct Network {
+    course: Fractal,
+    course_scale: f64,
+    depth: Fractal,
+    depth_scale: f64,
+    swell: Fractal,
+    swell_scale: f64,
+    /// `w`: |n| at the edge of an unswollen tunnel.
+    width: f64,
+    /// The same edge in lattice cells from the tunnel's middle line
+    /// (nominal: where n changes at its typical rate), for the LOD rule.
+    half_width_cells: f64,
+    /// `W`: how many times wider a chamber gets.
+    widen: f64,
+    /// `c = centre.0 + centre.1 · noise`, layers.
+    centre: (f64, f64),
+    /// `r`, layers.
+    half_height: f64,
+    /// `R`: how many times taller a chamber gets.
+    heighten: f64,
+}
+
+/// The typical |∇n| of the course noise (2-octave fBm) along the sphere,
+/// per unit of noise space: sets the tunnel's width in noise units from its
+/// width in metres. (Its mean 3D gradient is 1.24, measured at 20,000
+/// places, 1.24 near its zeros too; along a surface, √(2/3) of that.)
+const COURSE_TYPICAL_GRADIENT: f64 = 1.0;
+
+impl Network {
+    /// The deepest air below the surface, layers.
+    fn deepest(&self) -> f64 {
+        self.centre.0 + self.centre.1 + self.half_height * (1.0 + self.heighten)
+    }
+
+    /// The shallowest, layers (negative: it can open at the surface).
+    #[cfg(test)]
+    fn shallowest(&self) -> f64 {
+        self.centre.0 - self.centre.1 - self.half_height * (1.0 + self.heighten)
+    }
+
+    /// Whether any tunnel of this network keeps air at voxels `span`
+    /// layers tall.
+    fn survives(&self, span: f64) -> bool {
+        let widest = self.half_width_cells * (1.0 + self.widen);
+        let tallest = self.half_height * (1.0 + self.heighten);
+        (span - 1.0) / (2.0 * widest) < 1.0 && tallest - 0.5 * (span - 1.0) > 0.0
+    }
+
+    /// This network's air over direction `d` for voxels `span` layers tall
+    /// (`region` in `[0, 1]`): `(near, span in 1/64 layer)`.
+    fn column(&self, d: DVec3, region: f64, span: f64) -> (bool, [i16; 2]) {
+        let swell = self.swell.get((d * self.swell_scale).to_array()).clamp(0.0, 1.0);
+        let wide = (1.0 + self.widen * swell) * region;
+        let n = self.course.get((d * self.course_scale).to_array());
+        let e = n.abs() / (self.width * wide);
+        if e >= 1.0 || wide <= 0.0 {
+            return (false, [0, 0]);
+        }
+        let core = 1.0 - (span - 1.0) / (2.0 * self.half_width_cells * wide);
+        let half = self.half_height * (1.0 + self.heighten * swell) * (1.0 - e * e).sqrt() - 0.5 * (span - 1.0);
+        if e >= core || half <= 0.0 {
+            return (true, [0, 0]);
+        }
+        let centre = self.centre.0 + self.centre.1 * self.depth.get((d * self.depth_scale).to_array()).clamp(-1.0, 1.0);
+        let units = |depth: f64| (depth * SPAN_UNITS).round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
+        (true, [units(centre - half), units(centre + half)])
+    }
+}
+
+/// The cave networks of a planet (module docs).
+#[derive(Clone, Debug)]
+pub(crate) struct Caves {
+    networks: Vec<Network>,
+    region: Fractal,
+    region_scale: f64,
+    coarsest_lod: Option<u8>,
+    deepest: f64,
+}
+
+impl Caves {
+    /// The caves of a planet of `radius` metres with `layer_height`-metre
+    /// layers, tunnels about `size` metres tall (0: none), from `seed`.
+    ///
+    /// # Errors
+    /// [`VoxelError::NonFinite`] / [`VoxelError::OutOfRange`] for a NaN,
+    /// infinite or negative size, or caves deeper than 500 layers.
+    pub(crate) fn new(size: f64, radius: f64, layer_height: f64, max_lod: u8, seed: u32) -> Result<Self, VoxelError> {
+        if !size.is_finite() {
+            return Err(VoxelError::NonFinite { name: "cave size", value: size });
+        }
+        if size < 0.0 {
+            return Err(VoxelError::OutOfRange { name: "cave size", requirement: "≥ 0", value: size });
+        }
+        let c = size / layer_height;
+        // Metres → noise space of a unit direction, for a wavelength.
+        let scale = |wavelength_m: f64| radius / wavelength_m;
+        let network = |salt: u32, course_m: f64, half_width: f64, widen, centre, half_height, heighten| {
+            let course_scale = scale(course_m);
+            Network {
+                course: Fractal::fbm(seed.wrapping_add(salt), 2, 0.5, 2.0),
+                course_scale,
+                depth: Fractal::fbm(seed.wrapping_add(salt + 2), 1, 0.5, 2.0),
+                depth_scale: scale(50.0 * size),
+                swell: Fractal::fbm(seed.wrapping_add(salt + 3), 1, 0.5, 2.0),
+                swell_scale: scale(15.0 * size),
+                width: half_width * layer_height / course_m * COURSE_TYPICAL_GRADIENT,
+                half_width_cells: half_width,
+                widen,
+                centre,
+                half_height,
+                heighten,
+            }
+        };
+        let networks = if c > 0.0 {
+            vec![
+                // Shallow: from the surface down to about three tunnel
+                // heights, 3 m half wide on an Earth (5 m caves).
+                network(101, 18.0 * size, 0.6 * c, 0.5, (1.6 * c, 1.6 * c), 0.5 * c, 0.5),
+                // Deep: under the shallow one, never touching it, with
+                // chambers four times as wide and 2.5 times as tall.
+                network(111, 25.0 * size, 0.8 * c, 3.0, (7.0 * c, 1.2 * c), 0.7 * c, 1.5),
+            ]
+        } else {
+            Vec::new()
+        };
+        let deepest = networks.iter().map(Network::deepest).fold(0.0, f64::max);
+        if deepest * SPAN_UNITS > f64::from(i16::MAX) {
+            return Err(VoxelError::OutOfRange {
+                name: "cave size",
+                requirement: "caves at most 500 layers deep (about 50 voxels)",
+                value: size,
+            });
+        }
+        let coarsest_lod =
+            (0..=max_lod).take_while(|&lod| networks.iter().any(|n| n.survives(f64::from(1u32 << lod)))).last();
+        Ok(Self {
+            networks,
+            region: Fractal::fbm(seed.wrapping_add(121), 1, 0.5, 2.0),
+            // Regions a few kilometres across, a few to a small planet.
+            region_scale: if c > 0.0 { scale((400.0 * size).min(radius / 4.0)) } else { 0.0 },
+            coarsest_lod,
+            deepest,
+        })
+    }
+
+    /// The coarsest LOD any cave keeps air at, or `None` without caves.
+    pub(crate) fn coarsest_lod(&self) -> Option<u8> {
+        self.coarsest_lod
+    }
+
+    /// Whether voxels of `lod` can be cave air anywhere.
+    pub(crate) fn at_lod(&self, lod: u8) -> bool {
+        self.coarsest_lod.is_some_and(|coarsest| lod <= coarsest)
+    }
+
+    /// The deepest cave air anywhere, layers below the surface (0 without
+    /// caves).
+    pub(crate) fn deepest(&self) -> f64 {
+        self.deepest
+    }
+
+    /// The caves of the voxel column in unit direction `d`, for voxels
+    /// `span` layers tall.
+    pub(crate) fn column(&self, d: DVec3, span: f64) -> ColumnCaves {
+        let mut caves = ColumnCaves::default();
+        if self.networks.is_empty() {
+            return caves;
+        }
+        let region = self.region.get((d * self.region_scale).to_array());
+        let region = smoothstep((region - REGION_FROM) / REGION_RAMP);
+        if region <= 0.0 {
+            return caves;
+        }
+        for (network, span_out) in self.networks.iter().zip(&mut caves.spans) {
+            let (near, air) = network.column(d, region, span);
+            caves.near |= near;
+            *span_out = air;
+        }
+        caves
+    }
+
+    /// Whether a patch within `reach` radians of unit direction `centre`
+    /// may hold caves at all (the region noise's range over it).
+    pub(crate) fn may_be_near(&self, centre: DVec3, reach: f64) -> bool {
+        !self.networks.is_empty()
+            && self.region.range_near((centre * self.region_scale).to_array(), reach * self.region_scale).1
+                > REGION_FROM
+    }
+
+    /// Whether the shallow network can open at the surface (its air reaches
+    /// depth 0): a test's sanity check on the parameters.
+    #[cfg(test)]
+    pub(crate) fn opens_at_the_surface(&self) -> bool {
+        self.networks.first().is_some_and(|n| n.shallowest() < 0.0)
+            && self.networks.windows(2).all(|w| w[0].deepest() < w[1].shallowest())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{PlanetSettings, ProceduralPlanet, VoxelSource};
+
+    #[test]
+    fn the_presets_caves_open_at_the_surface_and_their_networks_stay_apart() {
+        for settings in [PlanetSettings::earth(1), PlanetSettings::small(1)] {
+            let planet = ProceduralPlanet::new(settings.clone()).unwrap();
+            let layer = planet.voxel_size();
+            let caves = Caves::new(settings.cave_size, settings.radius, layer, planet.layout().max_lod(), 1).unwrap();
+            assert!(caves.opens_at_the_surface());
+            let coarsest = caves.coarsest_lod().unwrap();
+            println!(
+                "radius {} m: caves {} m, down to {:.1} m, kept to LOD {coarsest}",
+                settings.radius,
+                settings.cave_size,
+                caves.deepest() * layer
+            );
+            assert!((1..=6).contains(&coarsest));
+            // δ covers the deepest cave at every coarse LOD.
+            for lod in 1..=planet.layout().max_lod() {
+                assert!(planet.geometric_error(lod) >= caves.deepest() * layer);
+            }
+        }
+        let none = Caves::new(0.0, 6_371_000.0, 1.0, 18, 1).unwrap();
+        assert_eq!((none.coarsest_lod(), none.deepest()), (None, 0.0));
+        assert!(matches!(Caves::new(f64::NAN, 1.0, 1.0, 3, 1), Err(VoxelError::NonFinite { .. })));
+        assert!(matches!(Caves::new(-1.0, 1.0, 1.0, 3, 1), Err(VoxelError::OutOfRange { .. })));
+        assert!(matches!(Caves::new(60.0, 6_371_000.0, 1.0, 18, 1), Err(VoxelError::OutOfRange { .. })));
+    }
+}
