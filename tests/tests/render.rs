@@ -1053,7 +1053,17 @@ fn views_from_inside_earth_caves_show_all_the_rock_near_them_and_no_crack() {
                 missing.push((x, y));
             }
         }
-        println!("{name}: {background} background pixels, {} of them with rock within 60 m", missing.len());
+        println!(
+            "{name} (--camera-pos={:.2},{:.2},{:.2} --look-at={:.2},{:.2},{:.2}): {background} background pixels, \
+             {} of them with rock within 60 m",
+            eye.x,
+            eye.y,
+            eye.z,
+            look_at.x,
+            look_at.y,
+            look_at.z,
+            missing.len()
+        );
         assert!(missing.is_empty(), "{name}: rock within 60 m not drawn at {:?}", &missing[..missing.len().min(8)]);
         assert!(background < picture.rgba.len() / 4, "{name}: the view is mostly background");
     }
