@@ -94,22 +94,23 @@ impl Terrain {
             // not change between the last format-1 build and terrain
             // version 1.
             legacy: (ProceduralPlanet::TERRAIN_VERSION == 1 && settings.cave_size == 0.0).then(|| {
-                let PlanetSettings {
-                    radius,
-                    voxel_size,
-                    amplitude,
-                    feature_size,
-                    mountain_size,
-                    detail_amplitude,
-                    detail_size,
-                    seed,
-                    cave_size: _,
-                } = settings;
-                format!(
-                    "PlanetSettings {{ radius: {radius:?}, voxel_size: {voxel_size:?}, amplitude: {amplitude:?}, \
-                     feature_size: {feature_size:?}, mountain_size: {mountain_size:?}, \
-                     detail_amplitude: {detail_amplitude:?}, detail_size: {detail_size:?}, seed: {seed:?} }}"
-                )
+                // The derived Debug text of the fields format 1 knew, in
+                // their order (canonical values are Debug's: `{:?}` of each
+                // f64, the seed's digits).
+                const FORMAT_1_FIELDS: [&str; 8] = [
+                    "radius",
+                    "voxel_size",
+                    "amplitude",
+                    "feature_size",
+                    "mountain_size",
+                    "detail_amplitude",
+                    "detail_size",
+                    "seed",
+                ];
+                let canonical = settings.canonical();
+                let value = |name: &str| canonical.iter().find(|(n, _)| *n == name).map_or("", |(_, v)| v.as_str());
+                let fields: Vec<String> = FORMAT_1_FIELDS.iter().map(|n| format!("{n}: {}", value(n))).collect();
+                format!("PlanetSettings {{ {} }}", fields.join(", "))
             }),
         }
     }
