@@ -12,7 +12,8 @@ use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout};
 /// | 0–11 | `position`: f32 × 3, metres from the chunk's origin |
 /// | 12–23 | `normal`: f32 × 3, unit |
 /// | 24–35 | `morph_target`: f32 × 3, where the vertex goes as it morphs towards the coarser LOD |
-/// | 36–37 | `material`: u16 voxel material id |
+/// | 36 | `material`: u8 voxel material id |
+/// | 37 | `sky_light`: u8, 0 (in a cave) to 255 (open ground) |
 /// | 38–39 | `flags`: u16, [`MeshVertex::SKIRT`] / [`MeshVertex::CONSTRAINED`] |
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
@@ -33,7 +34,11 @@ pub struct MeshVertex {
     /// for every morph state, cover the gap.
     pub morph_target: Vec3,
     /// Voxel material id of the face.
-    pub material: u16,
+    pub material: u8,
+    /// How much sky lights the vertex, 0 (none: deep in a cave) to 255
+    /// (open ground): see `ChunkMesher`'s `sky_light`. Skirt vertices carry
+    /// their surface vertex's.
+    pub sky_light: u8,
     /// Bit set of [`MeshVertex::SKIRT`] and [`MeshVertex::CONSTRAINED`],
     /// and for a skirt vertex the side it hangs on
     /// ([`MeshVertex::skirt_side`]).
@@ -272,7 +277,7 @@ impl ChunkMesh {
         let normal = (b - a).cross(c - a).normalize_or_zero();
         for position in [a, b, c] {
             let world = self.origin + position.as_dvec3();
-            self.push_vertex(world, world, normal, 0, 0, VertexSource::Loose);
+            self.push_vertex(world, world, normal, (0, 255), 0, VertexSource::Loose);
         }
         let first = (self.vertices.len() - 3) as u32;
         self.indices.extend([first, first + 1, first + 2]);
@@ -283,7 +288,7 @@ impl ChunkMesh {
         world: DVec3,
         morph_world: DVec3,
         normal: Vec3,
-        material: u16,
+        (material, sky_light): (u8, u8),
         flags: u16,
         source: VertexSource,
     ) -> u32 {
@@ -293,6 +298,7 @@ impl ChunkMesh {
             normal,
             morph_target: relative_position(morph_world, self.origin),
             material,
+            sky_light,
             flags,
         });
         self.world.push(world);

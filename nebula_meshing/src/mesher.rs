@@ -47,7 +47,10 @@ use block_mesh::ndshape::ConstShape;
 use block_mesh::{OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad};
 use block_mesh_bgm::{BinaryGreedyQuadsBuffer, binary_greedy_quads};
 use nebula_math::{DVec3, FaceDirection, Vec3};
-use nebula_voxel::{CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_VOLUME, PaddedChunkShape, Voxel};
+use nebula_voxel::{
+    CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PADDED_COLUMNS,
+    PaddedChunkShape, Voxel,
+};
 
 use crate::MeshError;
 use crate::mesh::{ChunkMesh, VertexSource};
@@ -96,6 +99,9 @@ pub struct ChunkMesher {
     /// Per horizontal side (index as in [`FaceDirection::HORIZONTAL`]):
     /// every lattice point on its plane is a vertex.
     dense_sides: [bool; 4],
+    /// The chunk's [`ChunkVoxels::sky_floors`]: where each padded column
+    /// is open to the sky.
+    sky_floors: [u8; PADDED_COLUMNS],
 }
 
 impl Default for ChunkMesher {
@@ -123,6 +129,7 @@ impl ChunkMesher {
             index_b: Vec::new(),
             boundary_vertices: BoundaryVertices::Canonical,
             dense_sides: [false; 4],
+            sky_floors: [0; PADDED_COLUMNS],
         }
     }
 
@@ -186,6 +193,7 @@ impl ChunkMesher {
         binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [last; 3], faces, &mut self.greedy);
         let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         let stamp = self.next_stamp();
+        self.sky_floors = voxels.sky_floors();
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
         for (direction, (group, face)) in groups.iter_mut().zip(faces).enumerate() {
             let axes = FaceAxes::of(face);
@@ -206,6 +214,7 @@ impl ChunkMesher {
             });
             let is_covered = |index: usize| covered[index] == stamp;
             axes.push_boundary_strips(voxels.as_slice(), &is_covered, boundary_layers, group);
+            split_by_sky(&axes, group, voxels, &self.sky_floors);
         }
         for (group, face) in groups.iter().zip(faces) {
             for quad in group {
@@ -229,7 +238,7 @@ impl ChunkMesher {
             for quad in group {
                 let corners = face.quad_corners(quad).map(|c| c.to_array().map(|v| v as i32 - 1));
                 let material = voxels.get(quad.minimum).map_or(0, |v| v.material());
-                if let Err(error) = self.triangulate(corners, normal, u16::from(material), voxels, layout, mesh) {
+                if let Err(error) = self.triangulate(corners, normal, material, voxels, layout, mesh) {
                     result = Err(error);
                     break 'faces;
                 }
@@ -246,7 +255,7 @@ impl ChunkMesher {
         &mut self,
         corners: [[i32; 3]; 4],
         normal: [i32; 3],
-        material: u16,
+        material: u8,
         voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
@@ -273,7 +282,7 @@ impl ChunkMesher {
         let mut result = Ok(());
         for (chain, indices) in [(&chain_a, &mut index_a), (&chain_b, &mut index_b)] {
             for &point in chain.iter() {
-                match self.vertex(point, side, material, layout, mesh) {
+                match self.vertex(point, side, material, voxels, layout, mesh) {
                     Ok(index) => indices.push(index),
                     Err(error) => result = Err(error),
                 }
@@ -362,7 +371,8 @@ impl ChunkMesher {
         &mut self,
         local: [i32; 3],
         side: FaceDirection,
-        material: u16,
+        material: u8,
+        voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
     ) -> Result<u32, MeshError> {
@@ -375,9 +385,37 @@ impl ChunkMesher {
         let even = local.map(|c| c - c.rem_euclid(2));
         let morph = self.world_position(key, layout, even)?;
         let normal = self.normal(key, layout, local, side, world);
-        let index = mesh.push_vertex(world, morph, normal, material, 0, VertexSource::Surface { local, side });
+        let sky_light = self.sky_light(voxels, local, side);
+        let index =
+            mesh.push_vertex(world, morph, normal, (material, sky_light), 0, VertexSource::Surface { local, side });
         self.vertex_slot[slot] = (self.stamp, index);
         Ok(index)
+    }
+
+    /// How much sky lights lattice point `local` on a face looking towards
+    /// `side`: 255 where one of the air voxels in front of the face around
+    /// the point (up to four) is open to the sky
+    /// ([`ChunkVoxels::sky_floors`]), else 0. Between a quad's corners the
+    /// light is interpolated, so it fades from a cave mouth or an
+    /// overhang's edge (where the quads are split, `split_by_sky`) into
+    /// the dark, and open ground is never darkened. A function of the
+    /// point, the side and the voxels around it (padding included) alone,
+    /// so the chunks sharing a vertex give it the same light.
+    fn sky_light(&self, voxels: &ChunkVoxels, local: [i32; 3], side: FaceDirection) -> u8 {
+        let axis = side.axis();
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        // Padded index of the voxel layer in front of the face: voxel
+        // `local[axis]` (padded `+ 1`) in front of a face looking up the
+        // axis, the one before it otherwise.
+        let front = if side.is_positive() { local[axis] + 1 } else { local[axis] };
+        let open = [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
+            let mut padded = [0i32; 3];
+            padded[axis] = front;
+            padded[u] = local[u] + du;
+            padded[v] = local[v] + dv;
+            open_to_sky(voxels, &self.sky_floors, padded.map(|c| c as u32))
+        });
+        if open { 255 } else { 0 }
     }
 
     /// The canonical world position of local lattice point `local`: the
@@ -435,6 +473,60 @@ impl ChunkMesher {
         }
         (self.wall_normal[slot].1 * sign).as_vec3()
     }
+}
+
+/// Whether the voxel at `padded` is air open to the sky (`sky_floors`:
+/// [`ChunkVoxels::sky_floors`]).
+fn open_to_sky(voxels: &ChunkVoxels, sky_floors: &[u8; PADDED_COLUMNS], padded: [u32; 3]) -> bool {
+    voxels.get(padded).is_some_and(|voxel| !voxel.is_solid())
+        && padded[1] >= u32::from(sky_floors[(padded[0] + PADDED_CHUNK_SIZE * padded[2]) as usize])
+}
+
+/// Splits each interior greedy quad of `group` whose faces are not all
+/// open to the sky, or all covered, into runs along `u` that are: so that
+/// the light interpolated across a quad ([`ChunkMesher`]'s `sky_light`)
+/// fades only over covered ground, from its edge. Quads touching a
+/// boundary plane stay as they are (their vertices there must be the
+/// canonical set, which knows nothing of light). Open ground and caves
+/// away from their mouths are one kind throughout and not split.
+fn split_by_sky(axes: &FaceAxes, group: &mut Vec<UnorientedQuad>, voxels: &ChunkVoxels, floors: &[u8; PADDED_COLUMNS]) {
+    let front = |padded: [u32; 3]| {
+        let mut front = padded;
+        front[axes.n] = if axes.positive { front[axes.n] + 1 } else { front[axes.n] - 1 };
+        open_to_sky(voxels, floors, front)
+    };
+    let mut runs = Vec::new();
+    group.retain(|quad| {
+        if axes.touches_boundary(quad) {
+            return true;
+        }
+        let first = front(quad.minimum);
+        let mut uniform = true;
+        axes.for_each_face(quad, |padded| uniform &= front(padded) == first);
+        if uniform {
+            return true;
+        }
+        for dv in 0..quad.height {
+            let mut start = 0;
+            while start < quad.width {
+                let at = |du: u32| {
+                    let mut padded = quad.minimum;
+                    padded[axes.u] += du;
+                    padded[axes.v] += dv;
+                    padded
+                };
+                let open = front(at(start));
+                let mut end = start + 1;
+                while end < quad.width && front(at(end)) == open {
+                    end += 1;
+                }
+                runs.push(UnorientedQuad { minimum: at(start), width: end - start, height: 1 });
+                start = end;
+            }
+        }
+        false
+    });
+    group.append(&mut runs);
 }
 
 /// Whether lattice point `local`, on a boundary plane, is in the canonical

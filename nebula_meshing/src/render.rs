@@ -57,7 +57,7 @@ use crate::ChunkMesh;
 /// | 12–23 | `position_low`: f32 × 3, world position − high | `Float32x3` |
 /// | 24–35 | `target_low`: f32 × 3, morph target − high | `Float32x3` |
 /// | 36–39 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
-/// | 40–43 | `packed`: material (low 16 bits), flags (high 16 bits) | `Uint32` |
+/// | 40–43 | `packed`: material (bits 0–7), sky light (8–15), flags (16–31) | `Uint32` |
 ///
 /// A skirt vertex holds the
 /// surface vertex it hangs from; `flags` says it is a skirt and on which
@@ -74,8 +74,8 @@ pub struct RenderVertex {
     pub target_low: [f32; 3],
     /// Unit normal, octahedral encoding, snorm16 × 2.
     pub normal: [i16; 2],
-    /// Material id in the low 16 bits, [`MeshVertex`](crate::MeshVertex)
-    /// flags in the high 16 bits.
+    /// Material id in bits 0–7, [`MeshVertex::sky_light`](crate::MeshVertex::sky_light)
+    /// in bits 8–15, [`MeshVertex`](crate::MeshVertex) flags in the high 16 bits.
     pub packed: u32,
 }
 
@@ -181,8 +181,14 @@ impl RenderVertex {
 
     /// The material id.
     #[must_use]
-    pub fn material(&self) -> u16 {
-        (self.packed & 0xffff) as u16
+    pub fn material(&self) -> u8 {
+        (self.packed & 0xff) as u8
+    }
+
+    /// The sky light, 0–255 ([`MeshVertex::sky_light`](crate::MeshVertex::sky_light)).
+    #[must_use]
+    pub fn sky_light(&self) -> u8 {
+        ((self.packed >> 8) & 0xff) as u8
     }
 
     /// The flags ([`MeshVertex`](crate::MeshVertex) constants).
@@ -300,7 +306,7 @@ impl ChunkMesh {
                     position_low: (world - high).as_vec3().to_array(),
                     target_low,
                     normal: encode_normal(v.normal),
-                    packed: u32::from(v.material) | (u32::from(v.flags) << 16),
+                    packed: u32::from(v.material) | (u32::from(v.sky_light) << 8) | (u32::from(v.flags) << 16),
                 }
             })
             .collect()

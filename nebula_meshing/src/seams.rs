@@ -118,7 +118,7 @@ pub fn generate_skirt(
                 world + inward,
                 morph,
                 vertex.normal,
-                vertex.material,
+                (vertex.material, vertex.sky_light),
                 MeshVertex::skirt_flags(edge),
                 VertexSource::Skirt { top },
             )

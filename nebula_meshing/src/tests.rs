@@ -219,7 +219,7 @@ fn has_t_junctions_finds_one() {
     let mut mesh = ChunkMesh::empty(key, layout, layout.chunk_origin(key).unwrap());
     let add = |mesh: &mut ChunkMesh, local: [i32; 3]| {
         let world = layout.sphere().position(layout.lattice_point(key, local.map(i64::from)).unwrap());
-        mesh.push_vertex(world, world, Vec3::Y, 1, 0, VertexSource::Surface { local, side: FaceDirection::PosY })
+        mesh.push_vertex(world, world, Vec3::Y, (1, 255), 0, VertexSource::Surface { local, side: FaceDirection::PosY })
     };
     let v = [[0, 0, 0], [2, 0, 0], [0, 0, 2], [1, 0, 0], [1, 0, -1]].map(|l| add(&mut mesh, l));
     mesh.indices.extend([v[0], v[1], v[2]]);
@@ -882,4 +882,96 @@ proptest! {
             .collect();
         prop_assert_eq!(drawn, shown);
     }
+}
+
+/// Ground up to padded layer 20 with a tunnel along x (padded layers
+/// 10–12, z 15–17) and, where `shaft` says, a shaft from the tunnel up
+/// to the open ground at x 4–6; `offset` shifts x (for a neighbour).
+fn tunnel_chunk(key: ChunkKey, offset: i32, shaft: bool) -> ChunkVoxels {
+    let mut voxels = ChunkVoxels::new(key);
+    for z in 0..34u32 {
+        for y in 0..34u32 {
+            for x in 0..34u32 {
+                let gx = x as i32 + offset;
+                let in_tunnel = (10..=12).contains(&y) && (15..=17).contains(&z);
+                let in_shaft = shaft && (4..=6).contains(&gx) && (15..=17).contains(&z) && y >= 10;
+                let solid = y < 20 && !in_tunnel && !in_shaft;
+                voxels.set([x, y, z], if solid { Voxel::STONE } else { Voxel::AIR });
+            }
+        }
+    }
+    voxels
+}
+
+#[test]
+fn caves_are_lit_only_through_their_openings() {
+    let key = ChunkKey { face: CubeFace::NegY, lod: 0, x: 7, y: 2, layer: 0 };
+    let mut mesher = ChunkMesher::new();
+    let lights = |mesh: &ChunkMesh, wanted: &dyn Fn([i32; 3], FaceDirection) -> bool| -> Vec<(i32, u8)> {
+        (0..mesh.vertices().len())
+            .filter_map(|i| match mesh.sources[i] {
+                VertexSource::Surface { local, side } if wanted(local, side) => {
+                    Some((local[0], mesh.vertices()[i].sky_light))
+                }
+                _ => None,
+            })
+            .collect()
+    };
+    // The tunnel's floor (top faces at lattice layer 9) and the ground
+    // (lattice layer 19).
+    let floor = |l: [i32; 3], s: FaceDirection| s == FaceDirection::PosY && l[1] == 9;
+    let ground = |l: [i32; 3], s: FaceDirection| s == FaceDirection::PosY && l[1] == 19;
+    let closed = mesher.mesh(&tunnel_chunk(key, 0, false), planet().layout()).unwrap();
+    assert!(lights(&closed, &ground).iter().all(|&(_, light)| light == 255));
+    let dark = lights(&closed, &floor);
+    assert!(!dark.is_empty() && dark.iter().all(|&(_, light)| light == 0), "{dark:?}");
+    // A shaft opens the tunnel (lattice x 3–6): the floor under it is lit,
+    // the floor off it dark at the vertices not next to it (the light
+    // fades between them).
+    let open = mesher.mesh(&tunnel_chunk(key, 0, true), planet().layout()).unwrap();
+    let floor_lights = lights(&open, &floor);
+    assert!(floor_lights.iter().filter(|&&(x, _)| (3..=6).contains(&x)).all(|&(_, light)| light == 255));
+    assert!(floor_lights.iter().filter(|&&(x, _)| (3..=6).contains(&x)).count() >= 2, "{floor_lights:?}");
+    let off = floor_lights.iter().filter(|&&(x, _)| !(2..=7).contains(&x));
+    assert!(off.clone().count() >= 2 && off.clone().all(|&(_, light)| light == 0), "{floor_lights:?}");
+    // What lies above the padded chunk counts: covered above, the same
+    // voxels are dark under the shaft too.
+    let mut roofed = tunnel_chunk(key, 0, true);
+    for z in 0..34 {
+        for x in 0..34 {
+            roofed.set_covered_above((x, z), true);
+        }
+    }
+    let roofed = mesher.mesh(&roofed, planet().layout()).unwrap();
+    assert!(lights(&roofed, &floor).iter().all(|&(_, light)| light == 0));
+}
+
+#[test]
+fn neighbouring_chunks_light_the_vertices_they_share_alike() {
+    // The shaft sits on the boundary plane between two chunks along x:
+    // every vertex both chunks have (same lattice point, same side) has
+    // the same sky light in both.
+    let key_a = ChunkKey { face: CubeFace::NegY, lod: 0, x: 7, y: 2, layer: 0 };
+    let key_b = ChunkKey { x: 8, ..key_a };
+    let mut mesher = ChunkMesher::new();
+    let mut lit: HashMap<([i32; 3], FaceDirection), u8> = HashMap::new();
+    let mut shared = 0;
+    // Chunk b's local x 0 is chunk a's 32; shaft at global x 4–6 → a: 36–38 → put it at a's 31–33.
+    for (key, offset) in [(key_a, -29), (key_b, 3)] {
+        let mesh = mesher.mesh(&tunnel_chunk(key, offset, true), planet().layout()).unwrap();
+        for i in 0..mesh.vertices().len() {
+            if let VertexSource::Surface { local, side } = mesh.sources[i] {
+                let global = [local[0] + if key == key_a { 0 } else { 32 }, local[1], local[2]];
+                let light = mesh.vertices()[i].sky_light;
+                if let Some(&other) = lit.get(&(global, side)) {
+                    shared += 1;
+                    assert_eq!(other, light, "{global:?} {side:?}");
+                } else {
+                    lit.insert((global, side), light);
+                }
+            }
+        }
+    }
+    let (bright, dark) = (lit.values().filter(|&&l| l == 255).count(), lit.values().filter(|&&l| l == 0).count());
+    assert!(shared > 10 && bright > 0 && dark > 0, "{shared} shared, {bright} lit, {dark} dark");
 }

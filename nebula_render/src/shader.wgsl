@@ -44,8 +44,8 @@ struct VertexIn {
     @location(1) position_low: vec3<f32>,
     @location(2) target_low: vec3<f32>,
     @location(3) normal: vec2<f32>,
-    // low 16 bits: material, high 16 bits: flags (1 = skirt, 2 = constrained,
-    // bits 2–3: the side a skirt hangs on).
+    // bits 0–7: material, 8–15: sky light (0–255), high 16 bits: flags
+    // (1 = skirt, 2 = constrained, bits 2–3: the side a skirt hangs on).
     @location(4) packed: u32,
 };
 
@@ -59,7 +59,13 @@ struct VertexOut {
     @location(4) @interpolate(flat) lod_id: vec2<f32>,
     // Vertex − eye, metres.
     @location(5) relative: vec3<f32>,
+    // How much the sky lights the surface: 1 on open ground, 0 deep in a cave.
+    @location(6) sky: f32,
 };
+
+// What lights a cave far from its mouth: a dim glow, so that its rock
+// still reads.
+const CAVE_LIGHT: vec3<f32> = vec3<f32>(0.07, 0.068, 0.08);
 
 // μ = smoothstep(clamp((ρ_p/τ − 1) / (1.4 − 1), 0, 1)), ρ_p = δ_parent·K / D:
 // the twin of nebula_math::morph_factor (and RenderVertex::drawn_relative).
@@ -112,7 +118,8 @@ fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
     }
     out.clip = frame.view_proj * vec4<f32>(relative, 1.0);
     out.normal = decode_normal(in.normal);
-    out.material = in.packed & 0xffffu;
+    out.material = in.packed & 0xffu;
+    out.sky = f32((in.packed >> 8u) & 0xffu) / 255.0;
     out.flags = flags;
     out.morph = mu;
     out.lod_id = chunk.info.xz;
@@ -238,6 +245,10 @@ fn fs_main(in: VertexOut) -> TerrainOut {
         if (in.material == 3u) {
             base = mix(base, vec3<f32>(0.36, 0.42, 0.16), 0.35 * clamp(t.y, 0.0, 1.0));
         }
+        // Caves and the ground under overhangs: the sky and the sun reach
+        // them only through their openings (exactly the open light where
+        // the sky light is 1).
+        light = mix(CAVE_LIGHT * (0.6 + 0.4 * facing), light, in.sky);
     } else {
         light = vec3<f32>(frame.sun.w + max(dot(n, frame.sun.xyz), 0.0) * (1.0 - frame.sun.w));
     }

@@ -100,6 +100,14 @@ impl ColumnCaves {
         let depth = depth * SPAN_UNITS;
         self.spans.iter().any(|&[top, bottom]| f64::from(top) < depth && depth < f64::from(bottom))
     }
+
+    /// Whether a voxel sampled `depth` layers under the column's height
+    /// (`depth > 0`), at `altitude`, is air all the way up to the ground:
+    /// in a span that opens at the surface (a cave mouth).
+    pub(crate) fn open_from_the_surface(&self, depth: f64, altitude: f64) -> bool {
+        self.holds(depth, altitude)
+            && self.spans.iter().any(|&[top, bottom]| top <= 0 && depth * SPAN_UNITS < f64::from(bottom))
+    }
 }
 
 /// One network of tunnels (module docs), lengths in layers and cells.

@@ -22,14 +22,24 @@ pub const PADDED_CHUNK_VOLUME: usize = PaddedChunkShape::USIZE;
 pub struct ChunkVoxels {
     key: ChunkKey,
     voxels: Box<[Voxel]>,
+    /// Per padded voxel column (`x + 34·z`), whether something solid lies
+    /// above the padded chunk, between it and the sky, as the source set it
+    /// ([`ChunkVoxels::set_covered_above`]); `None` until a source does.
+    covered_above: Option<Box<[u64; COLUMN_WORDS]>>,
 }
+
+/// Voxel columns of a padded chunk: 34².
+pub const PADDED_COLUMNS: usize = (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE) as usize;
+
+/// 64-bit words of a bit per padded column.
+const COLUMN_WORDS: usize = PADDED_COLUMNS.div_ceil(64);
 
 impl ChunkVoxels {
     /// An all-air chunk for `key` (fill it with
     /// [`VoxelSource::fill_chunk`](crate::VoxelSource::fill_chunk)).
     #[must_use]
     pub fn new(key: ChunkKey) -> Self {
-        Self { key, voxels: vec![Voxel::AIR; PADDED_CHUNK_VOLUME].into_boxed_slice() }
+        Self { key, voxels: vec![Voxel::AIR; PADDED_CHUNK_VOLUME].into_boxed_slice(), covered_above: None }
     }
 
     /// Wraps a caller-made voxel array.
@@ -40,7 +50,7 @@ impl ChunkVoxels {
         if voxels.len() != PADDED_CHUNK_VOLUME {
             return Err(VoxelError::WrongVoxelCount { expected: PADDED_CHUNK_VOLUME, got: voxels.len() });
         }
-        Ok(Self { key, voxels: voxels.into_boxed_slice() })
+        Ok(Self { key, voxels: voxels.into_boxed_slice(), covered_above: None })
     }
 
     /// The chunk these voxels belong to.
@@ -49,10 +59,59 @@ impl ChunkVoxels {
         self.key
     }
 
-    /// Re-labels the buffer for another chunk (contents unchanged), so one
-    /// allocation can be reused across chunks.
+    /// Re-labels the buffer for another chunk (voxels unchanged, what lies
+    /// above forgotten), so one allocation can be reused across chunks.
     pub fn set_key(&mut self, key: ChunkKey) {
         self.key = key;
+        self.covered_above = None;
+    }
+
+    /// Records whether padded voxel column `(x, z)` (each `0..34`) is
+    /// covered above the padded chunk: some solid voxel lies between its
+    /// top and the sky. Sources that know it (the procedural planet) set it
+    /// for every column when they fill a chunk; without it the sky is taken
+    /// to begin over any column whose top padded voxel is air (right above
+    /// ground, wrong in a buried chunk whose top is cave).
+    pub fn set_covered_above(&mut self, (x, z): (u32, u32), covered: bool) {
+        if x >= PADDED_CHUNK_SIZE || z >= PADDED_CHUNK_SIZE {
+            return;
+        }
+        let words = self.covered_above.get_or_insert_with(|| Box::new([0; COLUMN_WORDS]));
+        let n = (x + PADDED_CHUNK_SIZE * z) as usize;
+        if covered {
+            words[n / 64] |= 1 << (n % 64);
+        } else {
+            words[n / 64] &= !(1 << (n % 64));
+        }
+    }
+
+    /// For each padded voxel column (`x + 34·z`), the lowest padded layer
+    /// `y` from which it is open to the sky: every voxel from `y` up, and
+    /// everything above the padded chunk, is air. 34 where the column is
+    /// covered at its top. What lights caves and overhangs darker than open
+    /// ground.
+    #[must_use]
+    pub fn sky_floors(&self) -> [u8; PADDED_COLUMNS] {
+        let size = PADDED_CHUNK_SIZE;
+        let mut floors = [size as u8; PADDED_COLUMNS];
+        for z in 0..size {
+            for x in 0..size {
+                let n = (x + size * z) as usize;
+                let covered = match &self.covered_above {
+                    Some(words) => words[n / 64] & (1 << (n % 64)) != 0,
+                    None => self.voxels[PaddedChunkShape::linearize([x, size - 1, z]) as usize].is_solid(),
+                };
+                if covered {
+                    continue;
+                }
+                let mut floor = size;
+                while floor > 0 && !self.voxels[PaddedChunkShape::linearize([x, floor - 1, z]) as usize].is_solid() {
+                    floor -= 1;
+                }
+                floors[n] = floor as u8;
+            }
+        }
+        floors
     }
 
     /// All voxels in [`PaddedChunkShape`] order (what block-mesh takes).

@@ -337,6 +337,13 @@ impl Column {
         let voxel = classify_depth(*self, depth, span);
         if voxel != Voxel::AIR && self.caves.holds(depth, centre) { Voxel::AIR } else { voxel }
     }
+
+    /// Whether the voxel sampled at `centre` layers and everything above it
+    /// is air: it is over the ground, or in a cave mouth's air.
+    fn open_to_sky(&self, centre: f64) -> bool {
+        let depth = self.height - centre;
+        depth <= 0.0 || self.caves.open_from_the_surface(depth, centre)
+    }
 }
 
 impl HeightCache {
@@ -1117,6 +1124,10 @@ impl VoxelSource for ProceduralPlanet {
                     *voxel = column.voxel(centre, span);
                 }
             }
+        }
+        let above = corner_centre(base_h + size as i64, span);
+        for (n, column) in heights.iter().enumerate() {
+            out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above));
         }
         Ok(())
     }

@@ -1038,3 +1038,53 @@ fn coarse_cave_voxels_are_mostly_cave_at_lod_0() {
         assert!(core_wrong <= corner_wrong, "LOD {lod}: {core_wrong} vs {corner_wrong}");
     }
 }
+
+/// Around random Earth caves (a fixed seed), at LODs 0 and 1: a voxel the
+/// chunk's sky floors call open has only air above it up to the sky, and
+/// an air voxel they call covered has something solid above it (read
+/// voxel by voxel up past the highest ground).
+#[test]
+fn sky_floors_say_which_air_sees_the_sky() {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let layout = planet.layout();
+    let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+    let (mut open, mut covered) = (0, 0);
+    for cave in cave_voxels(&planet, 6, 44) {
+        for lod in [0u8, 1] {
+            let at = VoxelCoord { lod, i: cave.i >> lod, j: cave.j >> lod, h: cave.h >> lod, ..cave };
+            let key = layout.chunk_of(at);
+            planet.fill_chunk(key, &mut voxels).unwrap();
+            let floors = voxels.sky_floors();
+            let size = PADDED_CHUNK_SIZE;
+            // Padded column of the cave and a few around it, every air voxel.
+            let (ci, cj) = ((at.i % CHUNK_SIZE) + 1, (at.j % CHUNK_SIZE) + 1);
+            for (x, z) in [(ci, cj), (ci.saturating_sub(3), cj), (ci, (cj + 5).min(size - 1))] {
+                for y in 0..size {
+                    if voxels.get([x, y, z]).unwrap().is_solid() {
+                        continue;
+                    }
+                    let said_open = y >= u32::from(floors[(x + size * z) as usize]);
+                    // Walk up from this voxel in the planet's own voxels.
+                    let (i, j) = (
+                        i64::from(key.x) * i64::from(CHUNK_SIZE) + i64::from(x) - 1,
+                        i64::from(key.y) * i64::from(CHUNK_SIZE) + i64::from(z) - 1,
+                    );
+                    let first = i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(y) - 1;
+                    let top = (planet.height_at(layout.sphere().direction(key.face, 0.0, 0.0)).max(0.0) + 5_000.0)
+                        / layout.sphere().layer_height()
+                        / layout.voxel_span(lod) as f64;
+                    let sees_sky = (first..top as i64 + 2).all(|h| {
+                        !planet
+                            .voxel(VoxelCoord { face: key.face, lod, i: i as u32, j: j as u32, h: h as i32 })
+                            .unwrap()
+                            .is_solid()
+                    });
+                    assert_eq!(said_open, sees_sky, "lod {lod} {key:?} padded ({x}, {y}, {z})");
+                    if said_open { open += 1 } else { covered += 1 }
+                }
+            }
+        }
+    }
+    println!("{open} open and {covered} covered air voxels checked");
+    assert!(open > 100 && covered > 100, "{open} / {covered}");
+}
