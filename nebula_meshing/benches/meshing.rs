@@ -8,7 +8,8 @@
 //! - `bgm_fast_mesh`: the binary-greedy-meshing crate's `fast_mesh` alone,
 //!   with its opacity masks built outside the timing (it expects a game to
 //!   keep them up to date);
-//! - `surface`: greedy quads → T-junction-free triangles on the sphere;
+//! - `surface`: greedy quads → T-junction-free triangles on the sphere,
+//!   sky light included (`sky_floors`: its fixed part);
 //! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
 //!   and a skirt there) from the already generated voxels.
 //!
@@ -171,6 +172,11 @@ fn meshing(c: &mut Criterion) {
         });
         group.bench_function(BenchmarkId::new(format!("{name}/surface"), format!("tris={surface_tris}")), |b| {
             b.iter(|| mesher.mesh(voxels, planet.layout()).expect("valid chunk"));
+        });
+        // The fixed part of what the sky light costs `surface` (the rest is
+        // four voxel reads per vertex and one per face of a quad).
+        group.bench_function(BenchmarkId::new(format!("{name}/sky_floors"), "columns=1156"), |b| {
+            b.iter(|| voxels.sky_floors());
         });
         let tris = full.triangle_count();
         group.bench_function(BenchmarkId::new(format!("{name}/pipeline"), format!("tris={tris}")), |b| {
