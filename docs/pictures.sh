@@ -32,3 +32,5 @@ $demo --headless --radius 20000 --voxel-size 1.5 --seed 7 --size 640x400 --view 
     --camera-pos=12008.89,12008.89,12008.89 --look-at=15496.09,8940.67,8940.67 --screenshot docs/lod-colours.png
 # docs/earth-underwater.png is the render test under_the_sea_the_view_is_water's picture:
 #   cargo test -p nebula_tests --test render under_the_sea -- then target/tmp/nebula-render-tests/under-water.png
+# A world a game brings (nebula_tests' FloatingIslands source).
+cargo run --release -p nebula_tests --example islands && mv islands.png docs/islands.png

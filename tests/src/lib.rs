@@ -35,6 +35,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod islands;
+
 use std::collections::{HashMap, HashSet};
 use std::time::Duration;
 

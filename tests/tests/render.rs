@@ -1169,3 +1169,86 @@ fn earth_cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing(
     println!("from inside the rock: {skirts} skirt pixels");
     assert!(skirts > 100, "the skirt count sees no skirt from inside the rock ({skirts})");
 }
+
+#[test]
+fn floating_islands_stream_and_draw_crack_free() {
+    // A world a game brings (`nebula_tests::islands`: rock islands over an
+    // ocean floor, its own VoxelSource) through the same Streamer and
+    // PlanetRenderer: from random places around random islands (a fixed
+    // seed), settled, over the sentinel: no crack pixel.
+    if !adapter_or_skip("floating_islands_stream_and_draw_crack_free") {
+        return;
+    }
+    use nebula_render::readback::Offscreen;
+    use nebula_render::{FrameParams, PlanetRenderer, RendererOptions};
+    let world = std::sync::Arc::new(nebula_tests::islands::FloatingIslands::new(2_000.0, 6, 7).expect("world"));
+    let gpu = GpuContext::headless().expect("adapter");
+    let mut renderer =
+        PlanetRenderer::new(&gpu.adapter, &gpu.device, &gpu.queue, &RendererOptions { color_format: gpu.color_format })
+            .expect("renderer");
+    let tops = world.island_tops();
+    let mut rng = Rng(0x1514_a2d5);
+    let fov = 60.0;
+    for n in 0..4 {
+        let (up, top) = tops[(rng.next() * tops.len() as f64) as usize % tops.len()];
+        let aside = up.any_orthonormal_vector();
+        let around = up.cross(aside);
+        let a = rng.range(0.0, std::f64::consts::TAU);
+        let (distance, height) = (rng.range(60.0, 160.0), rng.range(-40.0, 60.0));
+        let out = (aside * a.cos() + around * a.sin()) * distance;
+        let eye = up * (top + height) + out;
+        let camera =
+            nebula_lod::Camera { position: eye, forward: up * (top - 20.0) - eye, up: eye.normalize(), aspect: 1.6 };
+        let settings =
+            nebula_lod::LodSettings { screen_height_px: f64::from(SIZE.1), fov_y_degrees: fov, ..Default::default() };
+        let mut streamer = nebula_world::stream::Streamer::new(world.clone(), settings, camera, 2, &mut |key, mesh| {
+            renderer.upload(key, mesh)
+        })
+        .expect("streamer");
+        streamer.keep_cpu_meshes(true);
+        let started = std::time::Instant::now();
+        while !streamer.settled() {
+            streamer.update(camera, &mut |key, mesh| renderer.upload(key, mesh));
+            renderer.finish_uploads();
+            assert!(started.elapsed().as_secs() < 120, "islands view {n} does not settle");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let frame_draw = streamer.frame_draw(eye);
+        let frame = FrameParams {
+            eye,
+            forward: camera.forward,
+            up: camera.up,
+            fov_y_degrees: fov as f32,
+            k: frame_draw.k as f32,
+            threshold_px: frame_draw.threshold_px as f32,
+            background: SENTINEL,
+            view: DebugView::Shaded,
+            morph: frame_draw.morph,
+            max_lod: world.layout().max_lod(),
+            atmosphere: None,
+            eye_in_sea: false,
+            sun: nebula_render::sun::default_sun().as_vec3(),
+            voxel_size_and_relief: (world.layout().sphere().layer_height(), 250.0),
+        };
+        let target = Offscreen::new(&gpu, SIZE).expect("target");
+        renderer.render(&target.view, SIZE, &frame, streamer.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw)));
+        let rgba = target.read(&gpu).expect("read back");
+        let drawn =
+            streamer.drawn().filter_map(|(_, chunk, draw)| chunk.cpu.as_ref().map(|mesh| (mesh, draw))).collect();
+        let geometry = nebula_render::crack::DrawnGeometry {
+            drawn,
+            frame: frame_draw,
+            sentinel_radius: streamer.view_min_surface_radius(),
+        };
+        let cracks = nebula_render::crack::count_cracks(&rgba, SIZE, SENTINEL, &camera, fov, &geometry);
+        let name = format!("islands-{n}");
+        write_png(&folder().join(format!("{name}.png")), &rgba, SIZE).expect("png");
+        let figures = streamer.figures();
+        println!(
+            "{name}: {} chunks, {} triangles, {} planet pixels, {} crack pixels, max LOD difference {}",
+            figures.chunks, figures.triangles, cracks.planet_pixels, cracks.cracks, figures.max_neighbor_lod_diff
+        );
+        assert_eq!(cracks.cracks, 0, "{name}: cracks at {:?}", cracks.samples);
+        assert!(cracks.planet_pixels > 10_000, "{name}: sees too little");
+    }
+}
