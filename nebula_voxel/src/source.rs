@@ -23,10 +23,32 @@ pub struct SurfaceBounds {
     pub sea_bed_only: bool,
 }
 
-/// A planet's voxels at any LOD, for any chunk.
+/// A planet's voxels at any LOD, for any chunk: what a game implements to
+/// bring its own world (the procedural planet is one; `nebula_tests`'
+/// floating islands another).
 ///
-/// Implementations are deterministic: the same key always gives the same
-/// voxels, so two chunks that read each other's border as padding agree.
+/// What an implementation promises, and what breaks if it does not:
+///
+/// - **Determinism**: the same key always gives the same voxels, and
+///   [`VoxelSource::voxel`] agrees with [`VoxelSource::fill_chunk`], so two
+///   chunks that read each other's border as padding agree (else: cracks
+///   between same-LOD chunks).
+/// - **One voxel per coordinate at every LOD**, whatever rule makes coarse
+///   voxels from fine ones (the procedural planet samples the far-corner
+///   LOD-0 voxel; its caves keep a tunnel's core only).
+/// - **Surface** means any solid voxel with air above or beside it: the
+///   ground, and the walls, floors and ceilings of caves, overhangs and
+///   floating rock alike. [`VoxelSource::surface_bounds`] must hold all of
+///   it, at the column's LOD and every finer LOD under it (else: chunks
+///   never meshed, holes).
+/// - **δ(L)** ([`VoxelSource::geometric_error`]) bounds how far, radially,
+///   LOD `L`'s surface can lie from LOD 0's across a seam between chunks of
+///   different LODs: the skirts hang that deep. With caves that is as deep
+///   as the deepest cave (a coarse chunk solid across a seam from a finer
+///   chunk's tunnel leaves the tunnel's cross-section to cover).
+/// - **Sky** (optional): a source that knows what lies above a chunk
+///   records it in [`ChunkVoxels::set_covered_above`] when it fills one, so
+///   that caves are dark although the chunk holds no roof of its own.
 pub trait VoxelSource: Send + Sync {
     /// The planet's chunk layout.
     fn layout(&self) -> &ChunkLayout;
