@@ -147,7 +147,6 @@ impl Network {
     }
 
     /// The shallowest, layers (negative: it can open at the surface).
-    #[cfg(test)]
     fn shallowest(&self) -> f64 {
         self.centre.0 - self.centre.1 - self.half_height * (1.0 + self.heighten)
     }
@@ -193,12 +192,21 @@ pub(crate) struct Caves {
 
 impl Caves {
     /// The caves of a planet of `radius` metres with `layer_height`-metre
-    /// layers, tunnels about `size` metres tall (0: none), from `seed`.
+    /// layers, tunnels about `size` metres tall (0: none), from `seed`;
+    /// the deep network at least `separation` layers under the shallow one
+    /// (see [`Caves::separation`]).
     ///
     /// # Errors
     /// [`VoxelError::NonFinite`] / [`VoxelError::OutOfRange`] for a NaN,
     /// infinite or negative size, or caves deeper than 500 layers.
-    pub(crate) fn new(size: f64, radius: f64, layer_height: f64, max_lod: u8, seed: u32) -> Result<Self, VoxelError> {
+    pub(crate) fn new(
+        size: f64,
+        radius: f64,
+        layer_height: f64,
+        max_lod: u8,
+        seed: u32,
+        separation: f64,
+    ) -> Result<Self, VoxelError> {
         if !size.is_finite() {
             return Err(VoxelError::NonFinite { name: "cave size", value: size });
         }
@@ -226,14 +234,16 @@ impl Caves {
             }
         };
         let networks = if c > 0.0 {
-            vec![
-                // Shallow: from the surface down to about three tunnel
-                // heights, 3 m half wide on an Earth (5 m caves).
-                network(101, 18.0 * size, 0.6 * c, 0.5, (1.6 * c, 1.6 * c), 0.5 * c, 0.5),
-                // Deep: under the shallow one, never touching it, with
-                // chambers four times as wide and 2.5 times as tall.
-                network(111, 25.0 * size, 0.8 * c, 3.0, (7.0 * c, 1.2 * c), 0.7 * c, 1.5),
-            ]
+            // Shallow: from the surface down to about three tunnel
+            // heights, 3 m half wide on an Earth (5 m caves).
+            let shallow = network(101, 18.0 * size, 0.6 * c, 0.5, (1.6 * c, 1.6 * c), 0.5 * c, 0.5);
+            // Deep: `separation` under the shallow one or more, never
+            // touching it, with chambers four times as wide and 2.5 times
+            // as tall.
+            let (swing, half_height, heighten) = (1.2 * c, 0.7 * c, 1.5);
+            let centre = (7.0 * c).max(shallow.deepest() + separation + swing + half_height * (1.0 + heighten));
+            let deep = network(111, 25.0 * size, 0.8 * c, 3.0, (centre, swing), half_height, heighten);
+            vec![shallow, deep]
         } else {
             Vec::new()
         };
@@ -271,6 +281,24 @@ impl Caves {
     /// caves).
     pub(crate) fn deepest(&self) -> f64 {
         self.deepest
+    }
+
+    /// The deepest air of the shallow network, the one that opens at the
+    /// surface, layers below it (0 without caves).
+    pub(crate) fn shallow_deepest(&self) -> f64 {
+        self.networks.first().map_or(0.0, Network::deepest)
+    }
+
+    /// Layers of rock, at the least, between the shallow network's air
+    /// and the deep network's, measured down the same column (0 without
+    /// caves). Where the ground changes by less than this between
+    /// neighbouring voxel columns, no deep air touches shallow or open
+    /// air: the deep network is sealed, seen only from inside it.
+    pub(crate) fn separation(&self) -> f64 {
+        match self.networks.as_slice() {
+            [shallow, deep] => deep.shallowest() - shallow.deepest(),
+            _ => 0.0,
+        }
     }
 
     /// The caves of the voxel column in unit direction `d`, for voxels
@@ -320,25 +348,29 @@ mod tests {
         for settings in [PlanetSettings::earth(1), PlanetSettings::small(1)] {
             let planet = ProceduralPlanet::new(settings.clone()).unwrap();
             let layer = planet.voxel_size();
-            let caves = Caves::new(settings.cave_size, settings.radius, layer, planet.layout().max_lod(), 1).unwrap();
+            let caves = planet.caves();
             assert!(caves.opens_at_the_surface());
             let coarsest = caves.coarsest_lod().unwrap();
             println!(
-                "radius {} m: caves {} m, down to {:.1} m, kept to LOD {coarsest}",
+                "radius {} m: caves {} m, shallow down to {:.1} m, all down to {:.1} m, {:.1} layers apart (S = {:.2}), kept to LOD {coarsest}",
                 settings.radius,
                 settings.cave_size,
-                caves.deepest() * layer
+                caves.shallow_deepest() * layer,
+                caves.deepest() * layer,
+                caves.separation(),
+                planet.max_slope()
             );
             assert!((1..=6).contains(&coarsest));
+            assert!(caves.separation() >= 4.0 * planet.max_slope() + 2.0 - 1e-9);
             // δ covers the deepest cave at every coarse LOD.
             for lod in 1..=planet.layout().max_lod() {
                 assert!(planet.geometric_error(lod) >= caves.deepest() * layer);
             }
         }
-        let none = Caves::new(0.0, 6_371_000.0, 1.0, 18, 1).unwrap();
+        let none = Caves::new(0.0, 6_371_000.0, 1.0, 18, 1, 0.0).unwrap();
         assert_eq!((none.coarsest_lod(), none.deepest()), (None, 0.0));
-        assert!(matches!(Caves::new(f64::NAN, 1.0, 1.0, 3, 1), Err(VoxelError::NonFinite { .. })));
-        assert!(matches!(Caves::new(-1.0, 1.0, 1.0, 3, 1), Err(VoxelError::OutOfRange { .. })));
-        assert!(matches!(Caves::new(60.0, 6_371_000.0, 1.0, 18, 1), Err(VoxelError::OutOfRange { .. })));
+        assert!(matches!(Caves::new(f64::NAN, 1.0, 1.0, 3, 1, 0.0), Err(VoxelError::NonFinite { .. })));
+        assert!(matches!(Caves::new(-1.0, 1.0, 1.0, 3, 1, 0.0), Err(VoxelError::OutOfRange { .. })));
+        assert!(matches!(Caves::new(60.0, 6_371_000.0, 1.0, 18, 1, 0.0), Err(VoxelError::OutOfRange { .. })));
     }
 }

@@ -15,6 +15,7 @@
 //! crater shows at every LOD whose voxels are smaller than about the crater.
 
 use std::collections::{BTreeSet, HashSet};
+use std::ops::RangeInclusive;
 
 // Persistent maps: a clone shares everything, an insert copies the path it
 // changes, so an edit to a source a meshing snapshot holds costs the edit,
@@ -364,6 +365,17 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
             return Ok(false);
         }
         self.base.sea_bed_below(column, radius)
+    }
+
+    fn sees_buried_layers(&self, eye: DVec3) -> bool {
+        // A shaft may open a buried cave to the sky anywhere: with edits,
+        // every layer is drawn (a world could tell where they reach; this
+        // keeps it simple and safe).
+        !self.touched_columns.is_empty() || self.base.sees_buried_layers(eye)
+    }
+
+    fn surface_chunk_layers_from_above(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
+        self.base.surface_chunk_layers_from_above(column)
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

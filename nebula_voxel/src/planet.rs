@@ -373,6 +373,24 @@ impl std::fmt::Debug for HeightCache {
 }
 
 impl ProceduralPlanet {
+    /// The caves (for tests).
+    #[cfg(test)]
+    pub(crate) fn caves(&self) -> &Caves {
+        &self.caves
+    }
+
+    /// Whether columns of `lod` leave the deep cave network's layers out
+    /// for an eye that does not see them (`sees_buried_layers`): where its
+    /// air is sealed at this LOD. Neighbouring voxel columns `s` cells
+    /// apart differ in height by at most `s·S` layers, and the networks'
+    /// spans shrink by `(s − 1)/2` each at this LOD (`caves.rs`), so deep
+    /// air touches no shallow or open air while `s·S + 2 ≤ separation +
+    /// s − 1`; `SEALED_MARGIN` keeps 2 layers spare.
+    fn hides_buried(&self, lod: u8) -> bool {
+        let s = self.layout.voxel_span(lod) as f64;
+        self.caves.at_lod(lod) && s * self.max_slope + SEALED_MARGIN <= self.caves.separation()
+    }
+
     /// The version of the terrain code: the same settings give the same
     /// voxels within a version. Bump it with any change that moves a
     /// voxel (noise, octaves, slopes, materials), so that saved worlds are
@@ -445,9 +463,11 @@ impl ProceduralPlanet {
         let ridges = Fractal::ridged(settings.seed.wrapping_add(1), octaves_for(settings.mountain_size), 2.0);
         let hill_octaves = (settings.detail_size / (4.0 * layer_height)).log2().ceil().clamp(1.0, 12.0) as usize;
         let hills = Fractal::fbm(settings.seed.wrapping_add(2), hill_octaves, 0.5, std::f64::consts::PI * 2.0 / 3.0);
-        let caves = Caves::new(settings.cave_size, radius, layer_height, max_lod, settings.seed)?;
+        // No caves until the slopes are known (they set how far apart the
+        // two networks must lie); the size is checked now.
+        Caves::new(settings.cave_size, radius, layer_height, max_lod, settings.seed, 0.0)?;
         let mut planet = Self {
-            caves,
+            caves: Caves::new(0.0, radius, layer_height, max_lod, settings.seed, 0.0)?,
             detail_scale: radius / settings.detail_size,
             hills,
             noise_scale: radius / settings.feature_size,
@@ -466,6 +486,10 @@ impl ProceduralPlanet {
         // Both bound the slope everywhere; the second, sum by sum, is the
         // one `surface_bounds` narrows place by place.
         planet.max_slope = max_slope.min(planet.slope_within(SumRanges::EVERYWHERE));
+        // The deep network sealed at LODs 0–2 (`hides_buried`).
+        let separation = SEALED_SPAN * planet.max_slope + SEALED_MARGIN;
+        planet.caves =
+            Caves::new(planet.settings.cave_size, radius, layer_height, max_lod, planet.settings.seed, separation)?;
         Ok(planet)
     }
 
@@ -1044,6 +1068,12 @@ fn ceil(x: f64) -> f64 {
     if truncated < x { truncated + 1.0 } else { truncated }
 }
 
+/// The coarsest voxels (in lattice cells) whose deep caves stay sealed,
+/// and the layers of rock kept spare beyond the slope
+/// (`ProceduralPlanet::hides_buried`).
+const SEALED_SPAN: f64 = 4.0;
+const SEALED_MARGIN: f64 = 2.0;
+
 /// Shares of the amplitude: bare rock above, forest below.
 const BARE_ROCK: f64 = 0.35;
 const TREE_LINE: f64 = 0.25;
@@ -1094,45 +1124,12 @@ pub(crate) fn smoothstep(x: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
-impl VoxelSource for ProceduralPlanet {
-    fn layout(&self) -> &ChunkLayout {
-        &self.layout
-    }
-
-    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
-        self.layout.check_voxel(at)?;
-        let column = self.column(at.face, at.lod, at.i.into(), at.j.into());
-        Ok(self.classify(column, at.h.into(), at.lod))
-    }
-
-    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
-        self.layout.check_key(key)?;
-        out.set_key(key);
-        let base_h = i64::from(key.layer) * i64::from(CHUNK_SIZE) - 1;
-        let heights = self.padded_heights(key.column());
-        let voxels = out.as_mut_slice();
-        let span = self.layout.voxel_span(key.lod) as f64;
-        let size = PADDED_CHUNK_SIZE as usize;
-        // Row by row along x, as the voxels are stored: the same arithmetic
-        // as `classify`, one corner centre per row.
-        for z in 0..size {
-            let columns = &heights[z * size..(z + 1) * size];
-            for y in 0..size {
-                let centre = corner_centre(base_h + y as i64, span);
-                let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
-                for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
-                    *voxel = column.voxel(centre, span);
-                }
-            }
-        }
-        let above = corner_centre(base_h + size as i64, span);
-        for (n, column) in heights.iter().enumerate() {
-            out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above));
-        }
-        Ok(())
-    }
-
-    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+impl ProceduralPlanet {
+    /// [`VoxelSource::surface_bounds`] with caves reaching `cave_depth`
+    /// layers under the ground: all of them (`Caves::deepest`), or the
+    /// shallow network alone where the deep one is sealed
+    /// ([`VoxelSource::surface_chunk_layers_from_above`]).
+    fn bounds_reaching(&self, column: ChunkColumn, cave_depth: f64) -> Result<SurfaceBounds, VoxelError> {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
@@ -1181,7 +1178,7 @@ impl VoxelSource for ProceduralPlanet {
             && high + span >= crate::caves::SEA_MARGIN_LAYERS
             && self.caves.may_be_near(ball.0, ball.1)
         {
-            let cave_floor = (low.max(lowest) - neighbour - self.caves.deepest() - span).floor() as i64 - 1;
+            let cave_floor = (low.max(lowest) - neighbour - cave_depth - span).floor() as i64 - 1;
             min_layer = min_layer.min(cave_floor);
         }
         let max_layer = (high.min(highest) + 0.5).ceil() as i64;
@@ -1198,6 +1195,67 @@ impl VoxelSource for ProceduralPlanet {
             max_radius: sphere.layer_radius(max_layer as f64 + 1.0),
             sea_bed_only,
         })
+    }
+}
+
+impl VoxelSource for ProceduralPlanet {
+    fn layout(&self) -> &ChunkLayout {
+        &self.layout
+    }
+
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
+        self.layout.check_voxel(at)?;
+        let column = self.column(at.face, at.lod, at.i.into(), at.j.into());
+        Ok(self.classify(column, at.h.into(), at.lod))
+    }
+
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
+        self.layout.check_key(key)?;
+        out.set_key(key);
+        let base_h = i64::from(key.layer) * i64::from(CHUNK_SIZE) - 1;
+        let heights = self.padded_heights(key.column());
+        let voxels = out.as_mut_slice();
+        let span = self.layout.voxel_span(key.lod) as f64;
+        let size = PADDED_CHUNK_SIZE as usize;
+        // Row by row along x, as the voxels are stored: the same arithmetic
+        // as `classify`, one corner centre per row.
+        for z in 0..size {
+            let columns = &heights[z * size..(z + 1) * size];
+            for y in 0..size {
+                let centre = corner_centre(base_h + y as i64, span);
+                let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
+                for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
+                    *voxel = column.voxel(centre, span);
+                }
+            }
+        }
+        let above = corner_centre(base_h + size as i64, span);
+        for (n, column) in heights.iter().enumerate() {
+            out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above));
+        }
+        Ok(())
+    }
+
+    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+        self.bounds_reaching(column, self.caves.deepest())
+    }
+
+    fn sees_buried_layers(&self, eye: nebula_math::DVec3) -> bool {
+        // Deep in the ground (between the networks or deeper): whatever
+        // deep cave may be around. The middle of the rock between them
+        // leaves room for the eye's column's height against H here.
+        let depth = (self.height_at(eye.normalize_or_zero())
+            - self.layout.sphere().radius_to_layer(eye.length()) * self.layer_height)
+            / self.layer_height;
+        self.caves.coarsest_lod().is_none() || depth > self.caves.shallow_deepest() + 0.5 * self.caves.separation()
+    }
+
+    fn surface_chunk_layers_from_above(
+        &self,
+        column: ChunkColumn,
+    ) -> Result<std::ops::RangeInclusive<i32>, VoxelError> {
+        let reach = if self.hides_buried(column.lod) { self.caves.shallow_deepest() } else { self.caves.deepest() };
+        Ok(self.bounds_reaching(column, reach)?.chunk_layers(&self.layout, column.lod))
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

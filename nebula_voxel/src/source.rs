@@ -2,7 +2,7 @@
 
 use std::ops::RangeInclusive;
 
-use crate::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, Voxel, VoxelCoord, VoxelError};
+use crate::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, DVec3, Voxel, VoxelCoord, VoxelError};
 
 /// Conservative bounds of the voxel surface over a chunk column.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,6 +21,17 @@ pub struct SurfaceBounds {
     /// sea, so a renderer that covers the sea bed with water covers all of
     /// it. `false` where the source cannot tell.
     pub sea_bed_only: bool,
+}
+
+impl SurfaceBounds {
+    /// The radial chunk layers of a column at `lod` these bounds reach.
+    #[must_use]
+    pub fn chunk_layers(&self, layout: &ChunkLayout, lod: u8) -> RangeInclusive<i32> {
+        let chunk_layers = i64::from(CHUNK_SIZE) * layout.voxel_span(lod);
+        let low = self.min_layer.div_euclid(chunk_layers);
+        let high = self.max_layer.div_euclid(chunk_layers);
+        clamp_i32(low)..=clamp_i32(high)
+    }
 }
 
 /// A planet's voxels at any LOD, for any chunk: what a game implements to
@@ -105,11 +116,32 @@ pub trait VoxelSource: Send + Sync {
     /// # Errors
     /// As [`VoxelSource::surface_bounds`].
     fn surface_chunk_layers(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
-        let bounds = self.surface_bounds(column)?;
-        let chunk_layers = i64::from(CHUNK_SIZE) * self.layout().voxel_span(column.lod);
-        let low = bounds.min_layer.div_euclid(chunk_layers);
-        let high = bounds.max_layer.div_euclid(chunk_layers);
-        Ok(clamp_i32(low)..=clamp_i32(high))
+        Ok(self.surface_bounds(column)?.chunk_layers(self.layout(), column.lod))
+    }
+
+    /// Whether an eye at `eye` may see the surface that only the layers
+    /// [`VoxelSource::surface_chunk_layers_from_above`] leaves out hold:
+    /// caves sealed off from the open air and from every cave that opens
+    /// to it (the procedural planet's deep network), seen only from inside
+    /// them. By default `true`: every layer that holds surface is meshed
+    /// and drawn. A streamer meshes the buried layers only while this
+    /// holds, so an eye on or over the ground does not pay for caves it
+    /// cannot see.
+    fn sees_buried_layers(&self, eye: DVec3) -> bool {
+        let _ = eye;
+        true
+    }
+
+    /// The radial chunk layers of `column` whose surface an eye that does
+    /// not [`VoxelSource::sees_buried_layers`] can see. By default all of
+    /// [`VoxelSource::surface_chunk_layers`]; a source that leaves layers
+    /// out promises that no ray from such an eye reaches their surface
+    /// without passing through rock first.
+    ///
+    /// # Errors
+    /// As [`VoxelSource::surface_bounds`].
+    fn surface_chunk_layers_from_above(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
+        self.surface_chunk_layers(column)
     }
 }
 

@@ -185,6 +185,30 @@ impl Held {
     }
 }
 
+/// The radial layers of `column` to mesh and draw: those that hold
+/// surface, from the tree's node when the tree holds one (no noise on the
+/// frame thread), else from the source; without those only an eye under
+/// the ground sees unless `buried_seen`
+/// ([`VoxelSource::surface_chunk_layers_from_above`]).
+fn column_layers<S: VoxelSource + ?Sized>(
+    voxels: &S,
+    tree: &LodTree,
+    column: ChunkColumn,
+    buried_seen: bool,
+) -> Vec<i32> {
+    // A failed bounds query: no layers.
+    let Some(all) = tree.node_layers(column).or_else(|| voxels.surface_chunk_layers(column).ok()) else {
+        return Vec::new();
+    };
+    if buried_seen {
+        return all.collect();
+    }
+    match voxels.surface_chunk_layers_from_above(column) {
+        Ok(seen) => all.filter(|layer| seen.contains(layer)).collect(),
+        Err(_) => all.collect(),
+    }
+}
+
 /// The meshes of one chunk column (all its radial layers).
 struct CachedColumn<H> {
     column: ChunkColumn,
@@ -206,13 +230,15 @@ struct CachedColumn<H> {
 }
 
 impl<H: MeshHandle> CachedColumn<H> {
-    /// A column with no meshes yet; its layers from the tree's node when
-    /// the tree holds one (no noise on the frame thread), else the source.
-    fn new<S: VoxelSource + ?Sized>(voxels: &S, tree: &LodTree, column: ChunkColumn, frame: u64) -> Self {
-        let layers: Vec<i32> = match tree.node_layers(column) {
-            Some(layers) => layers.collect(),
-            None => voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default(),
-        };
+    /// A column with no meshes yet, its layers [`column_layers`].
+    fn new<S: VoxelSource + ?Sized>(
+        voxels: &S,
+        tree: &LodTree,
+        column: ChunkColumn,
+        frame: u64,
+        buried_seen: bool,
+    ) -> Self {
+        let layers = column_layers(voxels, tree, column, buried_seen);
         Self {
             column,
             missing: layers.len(),
@@ -404,7 +430,9 @@ impl<H: MeshHandle> MeshCache<H> {
     }
 
     /// Whether the mesh of `key` is held.
-    fn holds(&self, key: ChunkKey) -> bool {
+    /// Whether the mesh of chunk `key` is held.
+    #[must_use]
+    pub fn holds(&self, key: ChunkKey) -> bool {
         self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer))
     }
 
@@ -821,6 +849,10 @@ pub struct Streamer<S, H> {
     lod_frames: (u64, u64),
     /// How far the camera moved in the frame before (for the prediction).
     last_step: f64,
+    /// Whether the eye sees the buried layers of columns
+    /// ([`VoxelSource::sees_buried_layers`]): they are meshed and drawn
+    /// only while it does.
+    buried_seen: bool,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -839,6 +871,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H,
     ) -> Result<Self, StreamError> {
         let tree = LodTree::new(&*voxels, settings)?;
+        let buried_seen = voxels.sees_buried_layers(camera.position);
         let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
         let threads = threads.max(1);
         let pool = rayon::ThreadPoolBuilder::new()
@@ -889,6 +922,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             draw: DrawList::default(),
             times: StageTimes::default(),
             frame: 0,
+            buried_seen,
             options: DrawOptions::default(),
             eye: camera,
             sea: None,
@@ -994,6 +1028,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// budget. Never waits for meshing.
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
+        let buried = self.voxels.sees_buried_layers(camera.position);
+        if buried != self.buried_seen {
+            self.buried_seen = buried;
+            self.refresh_layers();
+        }
         let previous = std::mem::replace(&mut self.eye, camera);
         let start = Instant::now();
         let step = previous.position.distance(camera.position);
@@ -1208,6 +1247,29 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         Ok(())
     }
 
+    /// Re-reads every held column's layers once the eye went under the
+    /// ground or came back out ([`VoxelSource::sees_buried_layers`]): the
+    /// meshes of layers no longer seen are freed, and a column on screen
+    /// that gains layers stays drawn with the others until they are
+    /// meshed (as for an edit that adds a layer).
+    fn refresh_layers(&mut self) {
+        let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
+        let columns: Vec<ChunkColumn> = self.cache.columns.iter().map(|(column, _)| *column).collect();
+        for column in columns {
+            let layers = column_layers(&*self.voxels, &self.tree, column, self.buried_seen);
+            let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
+            cached.layers.clone_from(&layers);
+            self.cache.retain_layers(column, |layer| layers.contains(&layer));
+            if drawn.contains(&column)
+                && let Some(cached) = self.cache.columns.get(&column)
+            {
+                for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
+                    self.cache.stale.insert(column.chunk(layer), self.generation);
+                }
+            }
+        }
+    }
+
     /// Chunks on screen still drawn from before an edit.
     #[must_use]
     pub fn stale_chunks(&self) -> usize {
@@ -1378,9 +1440,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             None
         };
         let loaded = LoadedChunk { handle, surface_triangles, skirt_triangles, cpu };
-        let (voxels, tree, frame) = (&*self.voxels, &self.tree, self.frame);
+        let (voxels, tree, frame, buried) = (&*self.voxels, &self.tree, self.frame, self.buried_seen);
         let (_, entry) =
-            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame));
+            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, buried));
         if entry.layers.contains(&key.layer) {
             self.cache.insert(column, key.layer, loaded);
         }
@@ -1465,7 +1527,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let voxels = &*self.voxels;
         let tree = &self.tree;
         let cache = &mut self.cache;
-        let frame = self.frame;
+        let (frame, buried) = (self.frame, self.buried_seen);
         let layout = voxels.layout();
         let max_lod = layout.max_lod();
         let eye = self.eye.position;
@@ -1619,7 +1681,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             for &column in &keep {
                 let layers = match cache.columns.get(&column) {
                     Some(cached) => cached.layers.clone(),
-                    None => tree.node_layers(column).map(Iterator::collect).unwrap_or_default(),
+                    None => column_layers(&*self.voxels, tree, column, self.buried_seen),
                 };
                 let priority = priority(column);
                 self.prefetch_jobs.extend(
@@ -1702,7 +1764,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             let priority = priority(column);
             let (_, entry) =
-                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame));
+                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, buried));
             entry.last_used = frame;
             for &layer in &entry.layers {
                 if !entry.chunks.contains(layer) {

@@ -818,6 +818,74 @@ mod streaming {
         Turn { settled: (before, after), fewest, coarsest }
     }
 
+    #[test]
+    fn sealed_caves_are_streamed_only_for_an_eye_among_them() {
+        // The Earth's deep caves are sealed (`nebula_voxel`'s
+        // `sees_buried_layers`): over the ground the streamer meshes and
+        // draws no layer that only they reach; down in one it does, every
+        // frame of the way complete; back up it frees them.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
+        let layout = *planet.layout();
+        let sphere = layout.sphere();
+        // A deep cave: air under the ground where the planet says an eye
+        // sees what is buried.
+        let mut state = 17u64;
+        let mut tries = 0;
+        let deep_eye = loop {
+            tries += 1;
+            assert!(tries < 5_000, "no deep cave found");
+            let dir = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5).normalize();
+            let ground = planet.surface_point(dir).length();
+            if ground < sphere.radius() + 40.0 {
+                continue;
+            }
+            let found = (1..140).map(|k| dir * (ground - f64::from(k) * 0.5)).find(|&p| {
+                planet.sees_buried_layers(p)
+                    && layout.voxel_at(p).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
+                    && layout.voxel_at(p + dir * 1.5).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
+            });
+            if let Some(eye) = found {
+                break eye;
+            }
+        };
+        let up = deep_eye.normalize();
+        let above = planet.surface_point(up) + up * 30.0;
+        let side = up.any_orthonormal_vector();
+        let camera = |position: DVec3| Camera { position, forward: (side - up * 0.3).normalize(), up, aspect: 1.6 };
+        assert!(!planet.sees_buried_layers(above));
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let mut streamer = Streamer::new(planet.clone(), lod, camera(above), 2, &mut upload).unwrap();
+        // Drawn chunks in layers only the deep caves reach.
+        let buried = |streamer: &Streamer<ProceduralPlanet, Sized>| {
+            streamer
+                .drawn()
+                .filter(|(key, ..)| !planet.surface_chunk_layers_from_above(key.column()).unwrap().contains(&key.layer))
+                .count()
+        };
+        let mut go = |streamer: &mut Streamer<ProceduralPlanet, Sized>, position: DVec3| {
+            let mut frames = 0;
+            loop {
+                streamer.update(camera(position), &mut upload);
+                assert_eq!(streamer.draw_list().holes, 0, "frame {frames} has a hole");
+                frames += 1;
+                if frames > 8 && streamer.settled() {
+                    break;
+                }
+                assert!(frames < 5_000, "did not settle");
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+        };
+        go(&mut streamer, above);
+        assert_eq!(buried(&streamer), 0, "buried layers drawn over the ground");
+        go(&mut streamer, deep_eye);
+        let down = buried(&streamer);
+        assert!(down > 0, "no buried layer drawn in a deep cave");
+        go(&mut streamer, above);
+        assert_eq!(buried(&streamer), 0, "buried layers still drawn after coming back up");
+        println!("deep cave at {deep_eye:.1}: {down} chunks of buried layers drawn down there, none over the ground");
+    }
+
     /// A mesh handle that only knows its size.
     struct Sized(u64);
 
