@@ -25,8 +25,8 @@ use imbl::{HashMap as SharedMap, HashSet as SharedSet};
 use nebula_math::{DVec3, FaceEdge};
 
 use crate::{
-    CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PaddedChunkShape, SurfaceBounds,
-    Voxel, VoxelCoord, VoxelError, VoxelSource,
+    CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, PADDED_CHUNK_SIZE, PaddedChunkShape,
+    SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
 };
 use ndshape::ConstShape;
 
@@ -367,15 +367,23 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
         self.base.sea_bed_below(column, radius)
     }
 
-    fn sees_buried_layers(&self, eye: DVec3) -> bool {
-        // A shaft may open a buried cave to the sky anywhere: with edits,
-        // every layer is drawn (a world could tell where they reach; this
-        // keeps it simple and safe).
-        !self.touched_columns.is_empty() || self.base.sees_buried_layers(eye)
+    fn layer_view(&self, eye: DVec3) -> LayerView {
+        // A shaft may open a sealed cave anywhere: with edits, every layer
+        // is drawn (a world could tell where they reach; this keeps it
+        // simple and safe).
+        if self.touched_columns.is_empty() { self.base.layer_view(eye) } else { LayerView::All }
     }
 
-    fn surface_chunk_layers_from_above(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
-        self.base.surface_chunk_layers_from_above(column)
+    fn surface_chunk_layers_seen(
+        &self,
+        column: ChunkColumn,
+        view: LayerView,
+    ) -> Result<RangeInclusive<i32>, VoxelError> {
+        // Edits reach only the layers of all (`layer_view` says so).
+        match view {
+            LayerView::All => self.surface_chunk_layers(column),
+            _ => self.base.surface_chunk_layers_seen(column, view),
+        }
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

@@ -102,8 +102,8 @@ use crate::perlin::Fractal;
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 
 use crate::{
-    CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, MAX_LOD, PADDED_CHUNK_SIZE, PaddedChunkShape,
-    SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
+    CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, MAX_LOD, PADDED_CHUNK_SIZE,
+    PaddedChunkShape, SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
 };
 use ndshape::ConstShape;
 
@@ -380,7 +380,8 @@ impl ProceduralPlanet {
     }
 
     /// Whether columns of `lod` leave the deep cave network's layers out
-    /// for an eye that does not see them (`sees_buried_layers`): where its
+    /// for an eye over the ground, and the rest for an eye in it
+    /// (`layer_view`): where its
     /// air is sealed at this LOD. Neighbouring voxel columns `s` cells
     /// apart differ in height by at most `s·S` layers, and the networks'
     /// spans shrink by `(s − 1)/2` each at this LOD (`caves.rs`), so deep
@@ -1128,8 +1129,15 @@ impl ProceduralPlanet {
     /// [`VoxelSource::surface_bounds`] with caves reaching `cave_depth`
     /// layers under the ground: all of them (`Caves::deepest`), or the
     /// shallow network alone where the deep one is sealed
-    /// ([`VoxelSource::surface_chunk_layers_from_above`]).
-    fn bounds_reaching(&self, column: ChunkColumn, cave_depth: f64) -> Result<SurfaceBounds, VoxelError> {
+    /// ([`VoxelSource::surface_chunk_layers_seen`]); and with `sealed_top`,
+    /// only what lies under that many layers of rock (the sealed caves'
+    /// surface, seen from inside them).
+    fn bounds_reaching(
+        &self,
+        column: ChunkColumn,
+        cave_depth: f64,
+        sealed_top: Option<f64>,
+    ) -> Result<SurfaceBounds, VoxelError> {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
@@ -1181,7 +1189,12 @@ impl ProceduralPlanet {
             let cave_floor = (low.max(lowest) - neighbour - cave_depth - span).floor() as i64 - 1;
             min_layer = min_layer.min(cave_floor);
         }
-        let max_layer = (high.min(highest) + 0.5).ceil() as i64;
+        let mut max_layer = (high.min(highest) + 0.5).ceil() as i64;
+        if let Some(top) = sealed_top {
+            // The rock over the sealed air, a voxel up, under the highest
+            // ground near the patch.
+            max_layer = max_layer.min((high.min(highest) + 0.5 + span - top).ceil() as i64 + 1);
+        }
         let sphere = self.layout.sphere();
         // Every column's H is below `high`; where that is under the sea and under the snow line (which dips
         // below sea level near the poles), every column is sea bed
@@ -1237,25 +1250,42 @@ impl VoxelSource for ProceduralPlanet {
     }
 
     fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
-        self.bounds_reaching(column, self.caves.deepest())
+        self.bounds_reaching(column, self.caves.deepest(), None)
     }
 
-    fn sees_buried_layers(&self, eye: nebula_math::DVec3) -> bool {
-        // Deep in the ground (between the networks or deeper): whatever
-        // deep cave may be around. The middle of the rock between them
+    fn layer_view(&self, eye: nebula_math::DVec3) -> LayerView {
+        if self.caves.coarsest_lod().is_none() || !self.hides_buried(0) {
+            return LayerView::All;
+        }
+        // Deep in the ground (between the networks or deeper): in the
+        // sealed caves, if in any. The middle of the rock between them
         // leaves room for the eye's column's height against H here.
         let depth = (self.height_at(eye.normalize_or_zero())
             - self.layout.sphere().radius_to_layer(eye.length()) * self.layer_height)
             / self.layer_height;
-        self.caves.coarsest_lod().is_none() || depth > self.caves.shallow_deepest() + 0.5 * self.caves.separation()
+        if depth > self.caves.shallow_deepest() + 0.5 * self.caves.separation() {
+            LayerView::FromSealedCaves
+        } else {
+            LayerView::FromAbove
+        }
     }
 
-    fn surface_chunk_layers_from_above(
+    fn surface_chunk_layers_seen(
         &self,
         column: ChunkColumn,
+        view: LayerView,
     ) -> Result<std::ops::RangeInclusive<i32>, VoxelError> {
-        let reach = if self.hides_buried(column.lod) { self.caves.shallow_deepest() } else { self.caves.deepest() };
-        Ok(self.bounds_reaching(column, reach)?.chunk_layers(&self.layout, column.lod))
+        let bounds = match view {
+            _ if !self.hides_buried(column.lod) => self.surface_bounds(column)?,
+            LayerView::All => self.surface_bounds(column)?,
+            LayerView::FromAbove => self.bounds_reaching(column, self.caves.shallow_deepest(), None)?,
+            LayerView::FromSealedCaves => self.bounds_reaching(
+                column,
+                self.caves.deepest(),
+                Some(self.caves.shallow_deepest() + self.caves.separation()),
+            )?,
+        };
+        Ok(bounds.chunk_layers(&self.layout, column.lod))
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

@@ -23,6 +23,19 @@ pub struct SurfaceBounds {
     pub sea_bed_only: bool,
 }
 
+/// What of a source's surface an eye can see ([`VoxelSource::layer_view`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayerView {
+    /// Everything that holds surface.
+    All,
+    /// An eye over the ground or in a cave open to it: not the surface of
+    /// caves sealed off from both.
+    FromAbove,
+    /// An eye down in sealed caves: only their surface (rock seals them
+    /// from the ground and every other cave).
+    FromSealedCaves,
+}
+
 impl SurfaceBounds {
     /// The radial chunk layers of a column at `lod` these bounds reach.
     #[must_use]
@@ -119,28 +132,32 @@ pub trait VoxelSource: Send + Sync {
         Ok(self.surface_bounds(column)?.chunk_layers(self.layout(), column.lod))
     }
 
-    /// Whether an eye at `eye` may see the surface that only the layers
-    /// [`VoxelSource::surface_chunk_layers_from_above`] leaves out hold:
-    /// caves sealed off from the open air and from every cave that opens
-    /// to it (the procedural planet's deep network), seen only from inside
-    /// them. By default `true`: every layer that holds surface is meshed
-    /// and drawn. A streamer meshes the buried layers only while this
-    /// holds, so an eye on or over the ground does not pay for caves it
-    /// cannot see.
-    fn sees_buried_layers(&self, eye: DVec3) -> bool {
+    /// What an eye at `eye` can see of the surface
+    /// ([`VoxelSource::surface_chunk_layers_seen`]). By default
+    /// [`LayerView::All`]: every layer that holds surface is meshed and
+    /// drawn. A source with caves sealed off from the open air (the
+    /// procedural planet's deep network) says [`LayerView::FromAbove`] over
+    /// the ground and [`LayerView::FromSealedCaves`] down in them, so that
+    /// a streamer pays only for what the eye can see.
+    fn layer_view(&self, eye: DVec3) -> LayerView {
         let _ = eye;
-        true
+        LayerView::All
     }
 
-    /// The radial chunk layers of `column` whose surface an eye that does
-    /// not [`VoxelSource::sees_buried_layers`] can see. By default all of
-    /// [`VoxelSource::surface_chunk_layers`]; a source that leaves layers
+    /// The radial chunk layers of `column` whose surface an eye with
+    /// `view` can see: by default all of
+    /// [`VoxelSource::surface_chunk_layers`]. A source that leaves layers
     /// out promises that no ray from such an eye reaches their surface
     /// without passing through rock first.
     ///
     /// # Errors
     /// As [`VoxelSource::surface_bounds`].
-    fn surface_chunk_layers_from_above(&self, column: ChunkColumn) -> Result<RangeInclusive<i32>, VoxelError> {
+    fn surface_chunk_layers_seen(
+        &self,
+        column: ChunkColumn,
+        view: LayerView,
+    ) -> Result<RangeInclusive<i32>, VoxelError> {
+        let _ = view;
         self.surface_chunk_layers(column)
     }
 }

@@ -1090,11 +1090,12 @@ fn sky_floors_say_which_air_sees_the_sky() {
 }
 
 /// The deep cave network is sealed at the LODs whose columns leave its
-/// layers out for an eye over the ground (`surface_chunk_layers_from_above`):
-/// flooding the air of deep caves (a fixed seed, LODs 0–2) through voxel
-/// faces never reaches air that is open or in a shallow cave, so no ray
-/// from out there reaches their walls. Layers left out are layers the
-/// column holds.
+/// layers out for an eye over the ground, and the rest for an eye in it
+/// (`surface_chunk_layers_seen`): flooding the air of deep caves (a fixed
+/// seed, LODs 0–2) through voxel faces never reaches air that is open or in
+/// a shallow cave, so no ray from out there reaches their walls, and the
+/// layers an eye in them is given hold every voxel of that air and the
+/// rock over it.
 #[test]
 fn deep_caves_are_sealed_where_their_layers_are_left_out() {
     let planet = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
@@ -1148,10 +1149,17 @@ fn deep_caves_are_sealed_where_their_layers_are_left_out() {
         // Flood the deep air (bounded), never leaving the face.
         let mut seen = std::collections::HashSet::from([(i, j, h)]);
         let mut queue = std::collections::VecDeque::from([(i, j, h)]);
+        let chunk_layer = |c: i32| c.div_euclid(CHUNK_SIZE as i32);
         while let Some((a, b, c)) = queue.pop_front() {
             assert!(
                 depth_of(a, b, c) > planet.caves().shallow_deepest(),
                 "LOD {lod}: deep air at ({a}, {b}, {c}) reaches shallow or open air"
+            );
+            let column = layout.chunk_of(VoxelCoord { face, lod, i: a, j: b, h: c }).column();
+            let sealed = planet.surface_chunk_layers_seen(column, LayerView::FromSealedCaves).unwrap();
+            assert!(
+                sealed.contains(&chunk_layer(c)) && sealed.contains(&chunk_layer(c + 1)),
+                "LOD {lod}: ({a}, {b}, {c}) outside {sealed:?}"
             );
             if seen.len() > 4_000 {
                 break;
@@ -1168,13 +1176,13 @@ fn deep_caves_are_sealed_where_their_layers_are_left_out() {
             }
         }
         flooded += seen.len();
-        // The column's layers from above are a subset of all its layers,
-        // and leave out the layers of the chunk holding this deep air
-        // unless the surface reaches down to it anyway.
+        // The layers each view is given are some of the column's.
         let column = layout.chunk_of(VoxelCoord { face, lod, i, j, h }).column();
-        let (all, above) =
-            (planet.surface_chunk_layers(column).unwrap(), planet.surface_chunk_layers_from_above(column).unwrap());
-        assert!(all.start() <= above.start() && above.end() <= all.end(), "{all:?} / {above:?}");
+        let all = planet.surface_chunk_layers(column).unwrap();
+        for view in [LayerView::FromAbove, LayerView::FromSealedCaves] {
+            let seen = planet.surface_chunk_layers_seen(column, view).unwrap();
+            assert!(seen.is_empty() || (all.start() <= seen.start() && seen.end() <= all.end()), "{all:?} / {seen:?}");
+        }
     }
     println!("{components} deep caves, {flooded} air voxels flooded, none open");
     assert!(flooded > 1_000);

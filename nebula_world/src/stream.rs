@@ -73,7 +73,7 @@ use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
 };
-use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, VoxelSource};
+use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, LayerView, VoxelSource};
 
 use crate::lod_thread::{LodThread, Outcome};
 use crate::panic_text;
@@ -187,23 +187,22 @@ impl Held {
 
 /// The radial layers of `column` to mesh and draw: those that hold
 /// surface, from the tree's node when the tree holds one (no noise on the
-/// frame thread), else from the source; without those only an eye under
-/// the ground sees unless `buried_seen`
-/// ([`VoxelSource::surface_chunk_layers_from_above`]).
+/// frame thread), else from the source; of those, the ones an eye with
+/// `view` can see ([`VoxelSource::surface_chunk_layers_seen`]).
 fn column_layers<S: VoxelSource + ?Sized>(
     voxels: &S,
     tree: &LodTree,
     column: ChunkColumn,
-    buried_seen: bool,
+    view: LayerView,
 ) -> Vec<i32> {
     // A failed bounds query: no layers.
     let Some(all) = tree.node_layers(column).or_else(|| voxels.surface_chunk_layers(column).ok()) else {
         return Vec::new();
     };
-    if buried_seen {
+    if view == LayerView::All {
         return all.collect();
     }
-    match voxels.surface_chunk_layers_from_above(column) {
+    match voxels.surface_chunk_layers_seen(column, view) {
         Ok(seen) => all.filter(|layer| seen.contains(layer)).collect(),
         Err(_) => all.collect(),
     }
@@ -236,9 +235,9 @@ impl<H: MeshHandle> CachedColumn<H> {
         tree: &LodTree,
         column: ChunkColumn,
         frame: u64,
-        buried_seen: bool,
+        view: LayerView,
     ) -> Self {
-        let layers = column_layers(voxels, tree, column, buried_seen);
+        let layers = column_layers(voxels, tree, column, view);
         Self {
             column,
             missing: layers.len(),
@@ -849,10 +848,9 @@ pub struct Streamer<S, H> {
     lod_frames: (u64, u64),
     /// How far the camera moved in the frame before (for the prediction).
     last_step: f64,
-    /// Whether the eye sees the buried layers of columns
-    /// ([`VoxelSource::sees_buried_layers`]): they are meshed and drawn
-    /// only while it does.
-    buried_seen: bool,
+    /// What the eye can see of the source's layers
+    /// ([`VoxelSource::layer_view`]): only those are meshed and drawn.
+    view: LayerView,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -871,7 +869,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H,
     ) -> Result<Self, StreamError> {
         let tree = LodTree::new(&*voxels, settings)?;
-        let buried_seen = voxels.sees_buried_layers(camera.position);
+        let view = voxels.layer_view(camera.position);
         let (sender, receiver) = sync_channel(MAX_UPLOADS_PER_FRAME);
         let threads = threads.max(1);
         let pool = rayon::ThreadPoolBuilder::new()
@@ -922,7 +920,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             draw: DrawList::default(),
             times: StageTimes::default(),
             frame: 0,
-            buried_seen,
+            view,
             options: DrawOptions::default(),
             eye: camera,
             sea: None,
@@ -1028,9 +1026,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// budget. Never waits for meshing.
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
-        let buried = self.voxels.sees_buried_layers(camera.position);
-        if buried != self.buried_seen {
-            self.buried_seen = buried;
+        let view = self.voxels.layer_view(camera.position);
+        if view != self.view {
+            self.view = view;
             self.refresh_layers();
         }
         let previous = std::mem::replace(&mut self.eye, camera);
@@ -1247,8 +1245,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         Ok(())
     }
 
-    /// Re-reads every held column's layers once the eye went under the
-    /// ground or came back out ([`VoxelSource::sees_buried_layers`]): the
+    /// Re-reads every held column's layers once the eye went down into
+    /// sealed caves or came back out ([`VoxelSource::layer_view`]): the
     /// meshes of layers no longer seen are freed, and a column on screen
     /// that gains layers stays drawn with the others until they are
     /// meshed (as for an edit that adds a layer).
@@ -1256,7 +1254,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         let columns: Vec<ChunkColumn> = self.cache.columns.iter().map(|(column, _)| *column).collect();
         for column in columns {
-            let layers = column_layers(&*self.voxels, &self.tree, column, self.buried_seen);
+            let layers = column_layers(&*self.voxels, &self.tree, column, self.view);
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
             cached.layers.clone_from(&layers);
             self.cache.retain_layers(column, |layer| layers.contains(&layer));
@@ -1440,9 +1438,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             None
         };
         let loaded = LoadedChunk { handle, surface_triangles, skirt_triangles, cpu };
-        let (voxels, tree, frame, buried) = (&*self.voxels, &self.tree, self.frame, self.buried_seen);
+        let (voxels, tree, frame, view) = (&*self.voxels, &self.tree, self.frame, self.view);
         let (_, entry) =
-            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, buried));
+            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
         if entry.layers.contains(&key.layer) {
             self.cache.insert(column, key.layer, loaded);
         }
@@ -1527,7 +1525,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let voxels = &*self.voxels;
         let tree = &self.tree;
         let cache = &mut self.cache;
-        let (frame, buried) = (self.frame, self.buried_seen);
+        let (frame, view) = (self.frame, self.view);
         let layout = voxels.layout();
         let max_lod = layout.max_lod();
         let eye = self.eye.position;
@@ -1681,7 +1679,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             for &column in &keep {
                 let layers = match cache.columns.get(&column) {
                     Some(cached) => cached.layers.clone(),
-                    None => column_layers(&*self.voxels, tree, column, self.buried_seen),
+                    None => column_layers(&*self.voxels, tree, column, self.view),
                 };
                 let priority = priority(column);
                 self.prefetch_jobs.extend(
@@ -1764,7 +1762,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             let priority = priority(column);
             let (_, entry) =
-                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, buried));
+                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
             entry.last_used = frame;
             for &layer in &entry.layers {
                 if !entry.chunks.contains(layer) {

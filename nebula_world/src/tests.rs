@@ -677,7 +677,7 @@ mod streaming {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
     use nebula_lod::{Camera, LodSettings};
-    use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, VoxelSource};
+    use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, VoxelSource};
 
     use super::unit;
     use crate::stream::{MeshHandle, Streamer};
@@ -821,9 +821,10 @@ mod streaming {
     #[test]
     fn sealed_caves_are_streamed_only_for_an_eye_among_them() {
         // The Earth's deep caves are sealed (`nebula_voxel`'s
-        // `sees_buried_layers`): over the ground the streamer meshes and
-        // draws no layer that only they reach; down in one it does, every
-        // frame of the way complete; back up it frees them.
+        // `layer_view`): over the ground the streamer meshes and draws no
+        // layer that only they reach; down in one it draws them and, near
+        // it (LODs 0–2), nothing else, every frame of the way complete;
+        // back up it frees them.
         let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
         let layout = *planet.layout();
         let sphere = layout.sphere();
@@ -840,7 +841,7 @@ mod streaming {
                 continue;
             }
             let found = (1..140).map(|k| dir * (ground - f64::from(k) * 0.5)).find(|&p| {
-                planet.sees_buried_layers(p)
+                planet.layer_view(p) == LayerView::FromSealedCaves
                     && layout.voxel_at(p).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
                     && layout.voxel_at(p + dir * 1.5).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
             });
@@ -852,17 +853,24 @@ mod streaming {
         let above = planet.surface_point(up) + up * 30.0;
         let side = up.any_orthonormal_vector();
         let camera = |position: DVec3| Camera { position, forward: (side - up * 0.3).normalize(), up, aspect: 1.6 };
-        assert!(!planet.sees_buried_layers(above));
+        assert_eq!(planet.layer_view(above), LayerView::FromAbove);
         let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
         let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let mut streamer = Streamer::new(planet.clone(), lod, camera(above), 2, &mut upload).unwrap();
-        // Drawn chunks in layers only the deep caves reach.
-        let buried = |streamer: &Streamer<ProceduralPlanet, Sized>| {
+        // Drawn chunks in layers only the deep caves reach, and drawn
+        // chunks near the eye (LODs 0–2) an eye in them cannot see.
+        let outside = |streamer: &Streamer<ProceduralPlanet, Sized>, view: LayerView, near: bool| {
             streamer
                 .drawn()
-                .filter(|(key, ..)| !planet.surface_chunk_layers_from_above(key.column()).unwrap().contains(&key.layer))
+                .filter(|(key, ..)| {
+                    (!near || key.lod <= 2)
+                        && !planet.surface_chunk_layers_seen(key.column(), view).unwrap().contains(&key.layer)
+                })
                 .count()
         };
+        let buried = |streamer: &Streamer<ProceduralPlanet, Sized>| outside(streamer, LayerView::FromAbove, false);
+        let unsealed =
+            |streamer: &Streamer<ProceduralPlanet, Sized>| outside(streamer, LayerView::FromSealedCaves, true);
         let mut go = |streamer: &mut Streamer<ProceduralPlanet, Sized>, position: DVec3| {
             let mut frames = 0;
             loop {
@@ -878,12 +886,18 @@ mod streaming {
         };
         go(&mut streamer, above);
         assert_eq!(buried(&streamer), 0, "buried layers drawn over the ground");
+        let (over, over_unsealed) = (streamer.drawn().count(), unsealed(&streamer));
+        assert!(over_unsealed > 0, "the sealed-cave check cannot tell");
         go(&mut streamer, deep_eye);
-        let down = buried(&streamer);
+        let (down, down_all) = (buried(&streamer), streamer.drawn().count());
         assert!(down > 0, "no buried layer drawn in a deep cave");
+        assert_eq!(unsealed(&streamer), 0, "the ground drawn from inside a sealed cave");
         go(&mut streamer, above);
         assert_eq!(buried(&streamer), 0, "buried layers still drawn after coming back up");
-        println!("deep cave at {deep_eye:.1}: {down} chunks of buried layers drawn down there, none over the ground");
+        println!(
+            "deep cave at {deep_eye:.1}: {down} chunks of buried layers drawn down there ({down_all} drawn in all), \
+             none over the ground ({over} drawn there)"
+        );
     }
 
     /// A mesh handle that only knows its size.
