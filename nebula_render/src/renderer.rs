@@ -248,6 +248,28 @@ impl FrameParams {
         max_lod: u8,
     ) -> Self {
         Self {
+            max_lod,
+            eye_in_sea: eye_in_sea(planet, camera.position),
+            ..Self::for_source(planet, camera, fov_y_degrees, frame, planet.relief())
+        }
+    }
+
+    /// The shaded view of any voxel source (a game's own world) from
+    /// `camera`, with the sky, a sea at its base radius and haze, and the
+    /// default sun: `frame` is the streamer's `frame_draw(camera.position)`
+    /// and `relief` how far its ground ranges in height, metres (what
+    /// voxel sides are lit by). The eye is never taken to be in the sea
+    /// (set [`FrameParams::eye_in_sea`] where the source can tell).
+    #[must_use]
+    pub fn for_source<S: VoxelSource + ?Sized>(
+        source: &S,
+        camera: &nebula_lod::Camera,
+        fov_y_degrees: f64,
+        frame: &FrameDraw,
+        relief: f64,
+    ) -> Self {
+        let layout = source.layout();
+        Self {
             eye: camera.position,
             forward: camera.forward,
             up: camera.up,
@@ -257,11 +279,11 @@ impl FrameParams {
             background: SPACE,
             view: DebugView::Shaded,
             morph: frame.morph,
-            max_lod,
-            atmosphere: Some(planet.layout().sphere().radius()),
-            eye_in_sea: eye_in_sea(planet, camera.position),
+            max_lod: layout.max_lod(),
+            atmosphere: Some(layout.sphere().radius()),
+            eye_in_sea: false,
             sun: crate::sun::default_sun().as_vec3(),
-            voxel_size_and_relief: (planet.voxel_size(), planet.relief()),
+            voxel_size_and_relief: (layout.sphere().layer_height(), relief),
         }
     }
 }

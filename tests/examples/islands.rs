@@ -11,9 +11,8 @@ use std::sync::Arc;
 use nebula_lod::{Camera, LodSettings};
 use nebula_render::context::GpuContext;
 use nebula_render::readback::Offscreen;
-use nebula_render::{DebugView, FrameParams, PlanetRenderer, RendererOptions, SPACE};
+use nebula_render::{FrameParams, PlanetRenderer, RendererOptions};
 use nebula_tests::islands::FloatingIslands;
-use nebula_voxel::VoxelSource;
 use nebula_world::stream::Streamer;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -41,24 +40,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         renderer.finish_uploads();
         std::thread::sleep(std::time::Duration::from_millis(16));
     }
-    let frame_draw = streamer.frame_draw(eye);
-    let frame = FrameParams {
-        eye,
-        forward: camera.forward,
-        up: camera.up,
-        fov_y_degrees: fov as f32,
-        k: frame_draw.k as f32,
-        threshold_px: frame_draw.threshold_px as f32,
-        background: SPACE,
-        view: DebugView::Shaded,
-        morph: frame_draw.morph,
-        max_lod: world.layout().max_lod(),
-        atmosphere: Some(world.layout().sphere().radius()),
-        eye_in_sea: false,
-        // Afternoon at the camera: high, from behind it and to the side.
-        sun: (eye.normalize() * 0.8 - camera.forward.normalize() * 0.4 + aside * 0.3).normalize().as_vec3(),
-        voxel_size_and_relief: (world.layout().sphere().layer_height(), 250.0),
-    };
+    let mut frame = FrameParams::for_source(&*world, &camera, fov, &streamer.frame_draw(eye), 250.0);
+    // Afternoon at the camera: high, from behind it and to the side.
+    frame.sun = (eye.normalize() * 0.8 - camera.forward.normalize() * 0.4 + aside * 0.3).normalize().as_vec3();
     let target = Offscreen::new(&gpu, size)?;
     renderer.render(&target.view, size, &frame, streamer.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw)));
     let rgba = target.read(&gpu)?;

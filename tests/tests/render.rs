@@ -1215,20 +1215,9 @@ fn floating_islands_stream_and_draw_crack_free() {
         }
         let frame_draw = streamer.frame_draw(eye);
         let frame = FrameParams {
-            eye,
-            forward: camera.forward,
-            up: camera.up,
-            fov_y_degrees: fov as f32,
-            k: frame_draw.k as f32,
-            threshold_px: frame_draw.threshold_px as f32,
             background: SENTINEL,
-            view: DebugView::Shaded,
-            morph: frame_draw.morph,
-            max_lod: world.layout().max_lod(),
             atmosphere: None,
-            eye_in_sea: false,
-            sun: nebula_render::sun::default_sun().as_vec3(),
-            voxel_size_and_relief: (world.layout().sphere().layer_height(), 250.0),
+            ..FrameParams::for_source(&*world, &camera, fov, &frame_draw, 250.0)
         };
         let target = Offscreen::new(&gpu, SIZE).expect("target");
         renderer.render(&target.view, SIZE, &frame, streamer.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw)));
