@@ -1023,21 +1023,21 @@ fn inside_a_cave(planet: &ProceduralPlanet, rng: &mut Rng) -> (DVec3, DVec3) {
 }
 
 #[test]
-fn views_from_inside_earth_caves_show_all_the_rock_near_them_and_no_crack() {
-    // From inside generated caves (random ones, a fixed seed), settled: no
+fn views_from_inside_caves_show_all_the_rock_near_them_and_no_crack() {
+    // From inside generated caves of the Earth and the small planet
+    // (random ones, a fixed seed), settled: no
     // crack pixel, and no background pixel whose ray meets LOD-0 rock
     // within 60 m (what the voxels hold there must be drawn: the chunks
     // under the ground around the cave, the tunnel's walls).
-    if !adapter_or_skip("views_from_inside_earth_caves_show_all_the_rock_near_them_and_no_crack") {
+    if !adapter_or_skip("views_from_inside_caves_show_all_the_rock_near_them_and_no_crack") {
         return;
     }
-    let settings = earth();
-    let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
     let mut rng = Rng(0x000c_a7e5);
-    for n in 0..3 {
+    for (n, settings) in [earth(), earth(), earth(), small(), small()].into_iter().enumerate() {
+        let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
         let (eye, look_at) = inside_a_cave(&planet, &mut rng);
         let shot = shot(eye, look_at, 70.0);
-        let name = format!("earth-inside-cave-{n}");
+        let name = format!("{}-inside-cave-{n}", if n < 3 { "earth" } else { "small" });
         let picture = settled(&name, &settings, &shot, DrawOptions::default());
         assert_eq!(picture.figures.crack_pixels, Some(0), "{name}: cracks at {:?}", picture.figures.cracks.samples);
         let camera = nebula_lod::Camera { position: eye, forward: look_at - eye, up: eye.normalize(), aspect: 1.6 };
@@ -1114,23 +1114,23 @@ fn at_a_cave_mouth(planet: &ProceduralPlanet, rng: &mut Rng, distance: f64, heig
 }
 
 #[test]
-fn earth_cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing() {
-    // Random cave mouths (a fixed seed) from 15–40 m away, 8–25 m over
+fn cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing() {
+    // Random cave mouths of the Earth and the small planet (a fixed seed)
+    // from 15–40 m away, 8–25 m over
     // the ground, in the skirts view over the sentinel: no crack pixel,
     // and no skirt pixel whose ray meets LOD-0 ground within 150 m (the
     // mouth's surroundings; a skirt at a distant silhouette, the grazing
     // residue of every view, is counted apart).
-    if !adapter_or_skip("earth_cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing") {
+    if !adapter_or_skip("cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing") {
         return;
     }
-    let settings = earth();
-    let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
     let mut rng = Rng(0x0000_0bee_f00d);
-    for n in 0..4 {
+    for (n, settings) in [earth(), earth(), earth(), earth(), small(), small()].into_iter().enumerate() {
+        let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
         let (distance, height) = (rng.range(15.0, 40.0), rng.range(8.0, 25.0));
         let (eye, mouth) = at_a_cave_mouth(&planet, &mut rng, distance, height);
         let shot = Shot { view: DebugView::Skirts, ..shot(eye, mouth, 60.0) };
-        let name = format!("earth-cave-mouth-{n}");
+        let name = format!("{}-cave-mouth-{n}", if n < 4 { "earth" } else { "small" });
         let picture = settled(&name, &settings, &shot, DrawOptions::default());
         let skirts = skirt_pixels(&picture.rgba, SIZE.0);
         let camera = nebula_lod::Camera { position: eye, forward: mouth - eye, up: eye.normalize(), aspect: 1.6 };
@@ -1159,6 +1159,8 @@ fn earth_cave_mouths_seen_from_the_surface_are_crack_free_with_no_skirt_showing(
     // The control: from inside solid rock, where every face of the ground
     // looks away and is culled, the skirts hanging under the LOD seams in
     // view are what is drawn, and they are counted.
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("planet");
     let up = DVec3::new(0.62, 0.55, 0.56).normalize();
     let eye = planet.surface_point(up) - up * 12.0;
     assert!(planet.voxel(planet.layout().voxel_at(eye).expect("voxel")).expect("voxel").is_solid());
