@@ -44,6 +44,12 @@
 //! column on screen that an edit gave a new layer stays drawn with its
 //! other layers until that one is.
 //!
+//! A column's layers are those that hold surface the eye can see
+//! ([`VoxelSource::layer_view`]): caves sealed off from the open air are
+//! meshed only while the eye is down in them, and then the ground over them
+//! is not. When the eye crosses into or out of them, every held column's
+//! layers are read again: gained layers are awaited as an edit's are.
+//!
 //! # Out of view: what a turn of the camera will need
 //!
 //! The LOD tree holds the whole planet by distance, not only the frustum.
