@@ -102,11 +102,18 @@ impl ColumnCaves {
     }
 
     /// Whether a voxel sampled `depth` layers under the column's height
-    /// (`depth > 0`), at `altitude`, is air all the way up to the ground:
-    /// in a span that opens at the surface (a cave mouth).
-    pub(crate) fn open_from_the_surface(&self, depth: f64, altitude: f64) -> bool {
+    /// (`depth > 0`), at `altitude`, and every voxel of `span` layers above
+    /// it up to the ground are air: all their samples lie in one span
+    /// (a cave mouth). The shallowest of those samples lies
+    /// `depth − span·(⌈depth/span⌉ − 1)` down, in `(0, span]`: the span's
+    /// top may lie below the ground as long as it is above that.
+    pub(crate) fn open_from_the_surface(&self, depth: f64, altitude: f64, span: f64) -> bool {
+        let shallowest = (depth - span * ((depth / span).ceil() - 1.0)) * SPAN_UNITS;
         self.holds(depth, altitude)
-            && self.spans.iter().any(|&[top, bottom]| top <= 0 && depth * SPAN_UNITS < f64::from(bottom))
+            && self
+                .spans
+                .iter()
+                .any(|&[top, bottom]| f64::from(top) < shallowest && depth * SPAN_UNITS < f64::from(bottom))
     }
 }
 
@@ -342,6 +349,28 @@ impl Caves {
 mod tests {
     use super::*;
     use crate::{PlanetSettings, ProceduralPlanet, VoxelSource};
+
+    #[test]
+    fn a_mouth_is_open_to_the_sky_down_to_its_floor() {
+        // A span from 0.3 layers under the ground down to 5: the ground's
+        // top voxel (sample 0.5 down) is already in it, so every voxel down
+        // to the floor sees the sky; with its top below the first sample
+        // (0.6), none does; at LOD 1 (samples 1.5, 3.5 down: voxels two
+        // layers tall) the first sample decides too.
+        let caves = |top: f64| ColumnCaves {
+            spans: [[(top * SPAN_UNITS) as i16, (5.0 * SPAN_UNITS) as i16], [0; 2]],
+            near: true,
+        };
+        let altitude = 100.0;
+        for depth in [0.5, 1.5, 2.5, 4.5] {
+            assert!(caves(0.3).open_from_the_surface(depth, altitude, 1.0), "{depth}");
+            assert!(!caves(0.6).open_from_the_surface(depth, altitude, 1.0), "{depth}");
+        }
+        assert!(!caves(0.3).open_from_the_surface(5.5, altitude, 1.0), "under the floor");
+        assert!(caves(1.2).open_from_the_surface(3.5, altitude, 2.0));
+        assert!(!caves(1.6).open_from_the_surface(3.5, altitude, 2.0));
+        assert!(!caves(0.3).open_from_the_surface(1.5, 0.5, 1.0), "under the sea margin");
+    }
 
     #[test]
     fn the_presets_caves_open_at_the_surface_and_their_networks_stay_apart() {

@@ -340,9 +340,9 @@ impl Column {
 
     /// Whether the voxel sampled at `centre` layers and everything above it
     /// is air: it is over the ground, or in a cave mouth's air.
-    fn open_to_sky(&self, centre: f64) -> bool {
+    fn open_to_sky(&self, centre: f64, span: f64) -> bool {
         let depth = self.height - centre;
-        depth <= 0.0 || self.caves.open_from_the_surface(depth, centre)
+        depth <= 0.0 || self.caves.open_from_the_surface(depth, centre, span)
     }
 }
 
@@ -389,7 +389,9 @@ impl ProceduralPlanet {
     /// s − 1`; `SEALED_MARGIN` keeps 2 layers spare.
     fn hides_buried(&self, lod: u8) -> bool {
         let s = self.layout.voxel_span(lod) as f64;
-        self.caves.at_lod(lod) && s * self.max_slope + SEALED_MARGIN <= self.caves.separation()
+        // (The separation is built as exactly this for s = 4; rounding in
+        // rebuilding it must not turn LOD 2 off.)
+        self.caves.at_lod(lod) && s * self.max_slope + SEALED_MARGIN <= self.caves.separation() + 1e-9
     }
 
     /// The version of the terrain code: the same settings give the same
@@ -1244,7 +1246,7 @@ impl VoxelSource for ProceduralPlanet {
         }
         let above = corner_centre(base_h + size as i64, span);
         for (n, column) in heights.iter().enumerate() {
-            out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above));
+            out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above, span));
         }
         Ok(())
     }

@@ -1049,7 +1049,28 @@ fn sky_floors_say_which_air_sees_the_sky() {
     let layout = planet.layout();
     let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
     let (mut open, mut covered) = (0, 0);
-    for cave in cave_voxels(&planet, 6, 44) {
+    // Deep caves, and cave mouths (a column whose heightfield top is cave
+    // air): their rims, where a tunnel's top lies just under the ground,
+    // and the chunks under them.
+    let sphere = layout.sphere();
+    let mut state = 4242u64;
+    let mut mouths = Vec::new();
+    while mouths.len() < 6 {
+        let per_edge = layout.voxels_per_edge(0);
+        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
+        let (i, j) = (
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+            (unit_random(&mut state) * f64::from(per_edge)) as u32,
+        );
+        let height =
+            planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5)) / sphere.layer_height();
+        let top = (height - 0.5).ceil() as i32 - 1;
+        if height > 3.0 && !planet.voxel(VoxelCoord { face, lod: 0, i, j, h: top }).unwrap().is_solid() {
+            mouths.push(VoxelCoord { face, lod: 0, i, j, h: top });
+            mouths.push(VoxelCoord { face, lod: 0, i, j, h: top - CHUNK_SIZE as i32 });
+        }
+    }
+    for cave in cave_voxels(&planet, 6, 44).into_iter().chain(mouths) {
         for lod in [0u8, 1] {
             let at = VoxelCoord { lod, i: cave.i >> lod, j: cave.j >> lod, h: cave.h >> lod, ..cave };
             let key = layout.chunk_of(at);
@@ -1058,7 +1079,9 @@ fn sky_floors_say_which_air_sees_the_sky() {
             let size = PADDED_CHUNK_SIZE;
             // Padded column of the cave and a few around it, every air voxel.
             let (ci, cj) = ((at.i % CHUNK_SIZE) + 1, (at.j % CHUNK_SIZE) + 1);
-            for (x, z) in [(ci, cj), (ci.saturating_sub(3), cj), (ci, (cj + 5).min(size - 1))] {
+            let around = (0..25)
+                .map(|n| ((ci + n % 5).saturating_sub(2).min(size - 1), (cj + n / 5).saturating_sub(2).min(size - 1)));
+            for (x, z) in [(ci.saturating_sub(3), cj), (ci, (cj + 5).min(size - 1))].into_iter().chain(around) {
                 for y in 0..size {
                     if voxels.get([x, y, z]).unwrap().is_solid() {
                         continue;
@@ -1070,9 +1093,14 @@ fn sky_floors_say_which_air_sees_the_sky() {
                         i64::from(key.y) * i64::from(CHUNK_SIZE) + i64::from(z) - 1,
                     );
                     let first = i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(y) - 1;
-                    let top = (planet.height_at(layout.sphere().direction(key.face, 0.0, 0.0)).max(0.0) + 5_000.0)
-                        / layout.sphere().layer_height()
-                        / layout.voxel_span(lod) as f64;
+                    // Over the highest the ground can be near, nothing is solid.
+                    let span = layout.voxel_span(lod) as f64;
+                    let sample = layout.sphere().direction(
+                        key.face,
+                        (i as f64 + 1.0) * span - 0.5,
+                        (j as f64 + 1.0) * span - 0.5,
+                    );
+                    let top = (planet.height_at(sample) / layout.sphere().layer_height() + 4.0) / span;
                     let sees_sky = (first..top as i64 + 2).all(|h| {
                         !planet
                             .voxel(VoxelCoord { face: key.face, lod, i: i as u32, j: j as u32, h: h as i32 })

@@ -1219,7 +1219,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         for &column in &columns {
             let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
-            cached.layers = self.voxels.surface_chunk_layers(column).map(Iterator::collect).unwrap_or_default();
+            cached.layers = column_layers(&*self.voxels, &self.tree, column, self.view);
             let layers = cached.layers.clone();
             self.cache.retain_layers(column, |layer| layers.contains(&layer));
             if !drawn.contains(&column) {
@@ -1257,6 +1257,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// that gains layers stays drawn with the others until they are
     /// meshed (as for an edit that adds a layer).
     fn refresh_layers(&mut self) {
+        // Prefetch jobs made for the old layers would be meshed and thrown
+        // away: list them again on the next update.
+        self.prefetched_at = 0;
+        self.prefetch_jobs.clear();
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         let columns: Vec<ChunkColumn> = self.cache.columns.iter().map(|(column, _)| *column).collect();
         for column in columns {
