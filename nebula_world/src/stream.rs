@@ -416,6 +416,11 @@ pub struct MeshCache<H> {
     /// Drawn chunks an edit changed: the old mesh stays on screen until one
     /// of at least this voxel generation replaces it.
     stale: HashMap<ChunkKey, u64>,
+    /// Of `stale`, the layers a change of view added to columns on screen
+    /// ([`VoxelSource::layer_view`]): meshed at their column's priority,
+    /// not ahead of everything as an edit's chunks are (the player looks
+    /// at those).
+    gained: HashSet<ChunkKey>,
     /// Chunks an edit changed while a job for them was running, with the
     /// voxel generation their mesh must be made from: that job read older
     /// voxels and is thrown away when collected, never cached as current
@@ -921,6 +926,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 max_bytes: MeshCache::<H>::default_max_bytes(),
                 max_upload_bytes: 16 << 20,
                 stale: HashMap::default(),
+                gained: HashSet::default(),
                 required: HashMap::default(),
             },
             draw: DrawList::default(),
@@ -1230,6 +1236,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         for key in dirty {
             let column = key.column();
+            // An edited chunk is awaited first, whatever awaited it before.
+            self.cache.gained.remove(key);
             if running.contains(key) {
                 self.cache.required.insert(*key, self.generation);
             }
@@ -1273,6 +1281,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             {
                 for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
                     self.cache.stale.insert(column.chunk(layer), self.generation);
+                    self.cache.gained.insert(column.chunk(layer));
                 }
             }
         }
@@ -1787,8 +1796,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             cache.stale.remove(&key);
             cache.remove(key);
         }
-        for &key in cache.stale.keys() {
-            jobs.push(Job { tier: Tier::View, priority: f64::MAX, key });
+        let MeshCache { stale, gained, .. } = &mut *cache;
+        gained.retain(|key| stale.contains_key(key));
+        for &key in stale.keys() {
+            let priority = if gained.contains(&key) { priority(key.column()) } else { f64::MAX };
+            jobs.push(Job { tier: Tier::View, priority, key });
         }
         // Prefetching only while there is room for it: what the view needs
         // is never evicted for it.
