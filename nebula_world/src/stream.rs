@@ -494,6 +494,20 @@ impl<H: MeshHandle> MeshCache<H> {
         }
     }
 
+    /// Awaits the layers of `column` (on screen) that have no mesh like an
+    /// edit's chunks (`stale`): the column stays drawn with its other
+    /// layers meanwhile, not replaced by a coarse stand-in. `gained`
+    /// (added by a change of view): meshed at the column's priority.
+    fn await_missing_layers(&mut self, column: ChunkColumn, generation: u64, gained: bool) {
+        let Some(cached) = self.columns.get(&column) else { return };
+        for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
+            self.stale.insert(column.chunk(layer), generation);
+            if gained {
+                self.gained.insert(column.chunk(layer));
+            }
+        }
+    }
+
     /// Keeps only the meshes of `column` whose layer `keep` accepts.
     fn retain_layers(&mut self, column: ChunkColumn, mut keep: impl FnMut(i32) -> bool) {
         let Some(cached) = self.columns.get_mut(&column) else { return };
@@ -1224,10 +1238,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         for &column in &columns {
-            let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
-            cached.layers = column_layers(&*self.voxels, &self.tree, column, self.view);
-            let layers = cached.layers.clone();
-            self.cache.retain_layers(column, |layer| layers.contains(&layer));
+            self.reread_layers(column);
             if !drawn.contains(&column) {
                 for &key in dirty.iter().filter(|key| key.column() == column) {
                     self.cache.remove(key);
@@ -1250,10 +1261,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // is awaited like a changed chunk: the column stays drawn with its
         // other layers meanwhile, not replaced by a coarse stand-in.
         for &column in columns.iter().filter(|column| drawn.contains(column)) {
-            let Some(cached) = self.cache.columns.get(&column) else { continue };
-            for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
-                self.cache.stale.insert(column.chunk(layer), self.generation);
-            }
+            self.cache.await_missing_layers(column, self.generation, false);
         }
         refreshed?;
         Ok(())
@@ -1272,19 +1280,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         let columns: Vec<ChunkColumn> = self.cache.columns.iter().map(|(column, _)| *column).collect();
         for column in columns {
-            let layers = column_layers(&*self.voxels, &self.tree, column, self.view);
-            let Some(cached) = self.cache.columns.get_mut(&column) else { continue };
-            cached.layers.clone_from(&layers);
-            self.cache.retain_layers(column, |layer| layers.contains(&layer));
-            if drawn.contains(&column)
-                && let Some(cached) = self.cache.columns.get(&column)
-            {
-                for &layer in cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)) {
-                    self.cache.stale.insert(column.chunk(layer), self.generation);
-                    self.cache.gained.insert(column.chunk(layer));
-                }
+            self.reread_layers(column);
+            if drawn.contains(&column) {
+                self.cache.await_missing_layers(column, self.generation, true);
             }
         }
+    }
+
+    /// Reads `column`'s layers again (its voxels or the view changed),
+    /// freeing the meshes of layers it no longer has.
+    fn reread_layers(&mut self, column: ChunkColumn) {
+        let layers = column_layers(&*self.voxels, &self.tree, column, self.view);
+        let Some(cached) = self.cache.columns.get_mut(&column) else { return };
+        cached.layers.clone_from(&layers);
+        self.cache.retain_layers(column, |layer| layers.contains(&layer));
     }
 
     /// Chunks on screen still drawn from before an edit.
