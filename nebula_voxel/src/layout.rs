@@ -161,6 +161,37 @@ impl ChunkLayout {
         if lod >= self.max_lod { f64::INFINITY } else { self.voxel_edge(lod + 1) }
     }
 
+    /// The in-face lattice coordinate that voxel column `c` of `lod`
+    /// samples under the far-corner rule (a coarse voxel is the LOD-0 voxel
+    /// in its far corner, `ProceduralPlanet`'s module docs): the centre of
+    /// that LOD-0 column. One owner, so every source's per-column and
+    /// per-row directions agree bit for bit.
+    #[must_use]
+    pub fn sample_coord(&self, c: i64, lod: u8) -> f64 {
+        (c as f64 + 1.0) * self.voxel_span(lod) as f64 - 0.5
+    }
+
+    /// The radial layer (fractional, LOD-0 layers) that radial voxel `h`
+    /// of `lod` samples under the far-corner rule: the centre of the LOD-0
+    /// voxel in its far corner.
+    #[must_use]
+    pub fn sample_layer(&self, h: i64, lod: u8) -> f64 {
+        (h + 1) as f64 * self.voxel_span(lod) as f64 - 0.5
+    }
+
+    /// The unit direction voxel column `(ci, cj)` of `lod` on `face`
+    /// samples ([`ChunkLayout::sample_coord`]). Columns beyond a face edge
+    /// are read on the neighbouring face, in that face's frame; in the gap
+    /// beyond two edges (a cube corner) the nearest column on the face
+    /// stands in (such voxels are never face neighbours of a chunk's own).
+    #[must_use]
+    pub fn sample_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> DVec3 {
+        let per_edge = i64::from(self.voxels_per_edge(lod));
+        let (face, ci, cj) =
+            face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
+        self.sphere.direction(face, self.sample_coord(ci, lod), self.sample_coord(cj, lod))
+    }
+
     /// Voxel columns along each face edge at `lod`.
     #[must_use]
     pub fn voxels_per_edge(&self, lod: u8) -> u32 {

@@ -781,7 +781,7 @@ impl ProceduralPlanet {
     /// face stands in: such voxels are never face neighbours of a chunk's
     /// own.
     fn column(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> Column {
-        let direction = self.column_direction(face, lod, ci, cj);
+        let direction = self.layout.sample_direction(face, lod, ci, cj);
         let [continents, ridges, hills] = self.sums_at(direction);
         let climate = Climate { sin_latitude: direction.z, continents, mountains: self.mountains(continents, ridges) };
         let caves = if self.caves.at_lod(lod) {
@@ -873,15 +873,6 @@ impl ProceduralPlanet {
         self.snow_line((polewards + reach).min(1.0))
     }
 
-    /// The unit direction [`Self::column`] samples.
-    fn column_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> nebula_math::DVec3 {
-        let per_edge = i64::from(self.layout.voxels_per_edge(lod));
-        let (face, ci, cj) =
-            face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
-        let span = self.layout.voxel_span(lod) as f64;
-        self.layout.sphere().direction(face, sample_coord(ci, span), sample_coord(cj, span))
-    }
-
     /// The heights of `column`'s padded voxel columns (x fastest, as
     /// `PaddedChunkShape` orders x and z), from the cache or computed.
     fn padded_heights(&self, column: ChunkColumn) -> Arc<[Column]> {
@@ -952,11 +943,11 @@ impl ProceduralPlanet {
             })
         };
         // Columns on this face: their directions from one warp per row and
-        // per column of the chunk (bit-identical to `column_direction`).
+        // per column of the chunk (bit-identical to `sample_direction`).
         let sphere = self.layout.sphere();
         let warped = |base: i64| -> Vec<Option<f64>> {
             (base..base + padded)
-                .map(|c| (0..per_edge).contains(&c).then(|| sphere.warp(sample_coord(c, span))))
+                .map(|c| (0..per_edge).contains(&c).then(|| sphere.warp(self.layout.sample_coord(c, column.lod))))
                 .collect()
         };
         let (warped_i, warped_j) = (warped(base_i), warped(base_j));
@@ -973,7 +964,7 @@ impl ProceduralPlanet {
                 missing.push(n as usize);
                 directions.push(match (warped_i[(n % padded) as usize], warped_j[(n / padded) as usize]) {
                     (Some(wi), Some(wj)) => sphere.direction_warped(column.face, wi, wj),
-                    _ => self.column_direction(column.face, column.lod, i, j),
+                    _ => self.layout.sample_direction(column.face, column.lod, i, j),
                 });
             }
         }
@@ -990,8 +981,7 @@ impl ProceduralPlanet {
     /// by depth in voxels of `lod`, so the top voxel of a column has the
     /// surface material at every LOD (no colour pop).
     fn classify(&self, column: Column, h: i64, lod: u8) -> Voxel {
-        let span = self.layout.voxel_span(lod) as f64;
-        column.voxel(corner_centre(h, span), span)
+        column.voxel(self.layout.sample_layer(h, lod), self.layout.voxel_span(lod) as f64)
     }
 
     /// Each noise sum's steepest change between neighbouring lattice cells
@@ -1237,14 +1227,14 @@ impl VoxelSource for ProceduralPlanet {
         for z in 0..size {
             let columns = &heights[z * size..(z + 1) * size];
             for y in 0..size {
-                let centre = corner_centre(base_h + y as i64, span);
+                let centre = self.layout.sample_layer(base_h + y as i64, key.lod);
                 let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
                 for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
                     *voxel = column.voxel(centre, span);
                 }
             }
         }
-        let above = corner_centre(base_h + size as i64, span);
+        let above = self.layout.sample_layer(base_h + size as i64, key.lod);
         for (n, column) in heights.iter().enumerate() {
             out.set_covered_above(((n % size) as u32, (n / size) as u32), !column.open_to_sky(above, span));
         }
@@ -1311,19 +1301,6 @@ impl VoxelSource for ProceduralPlanet {
     }
 }
 
-/// The in-face coordinate a voxel column `c` of `span` cells samples: the
-/// centre of the LOD-0 column in its far corner (module docs). One owner,
-/// so `column_direction` and the per-row warps of a chunk agree bit for bit.
-fn sample_coord(c: i64, span: f64) -> f64 {
-    (c as f64 + 1.0) * span - 0.5
-}
-
-/// The centre, in layers, of the LOD-0 voxel in the far corner of radial
-/// voxel `h` of `span` layers: the one that voxel samples.
-fn corner_centre(h: i64, span: f64) -> f64 {
-    (h + 1) as f64 * span - 0.5
-}
-
 /// The voxel whose sample lies `depth` layers below its column's surface
 /// (`span` layers per voxel). Under the sea the whole column is sea bed
 /// (sediment), so a wall of the sea floor is sea bed too and gets the
@@ -1363,7 +1340,7 @@ mod tests {
                 // A padded chunk's columns, at a face edge for the last one.
                 let base = if n == 3 { (-1, per_edge - 33) } else { (per_edge / 5, per_edge / 2) };
                 let directions: Vec<_> = (0..34 * 34)
-                    .map(|k| planet.column_direction(face, lod, base.0 + k % 34, base.1 + k / 34))
+                    .map(|k| planet.layout.sample_direction(face, lod, base.0 + k % 34, base.1 + k / 34))
                     .collect();
                 let columns = planet.columns_at(&directions, lod);
                 let mut exact = 0;

@@ -20,7 +20,7 @@
 //! from the steepest cone: a coarse voxel's sample is at most `s − 1` cells
 //! aside and `s` layers above the fine surface it stands for.
 
-use nebula_math::{CubeFace, Cubesphere, DVec3, SphereMap};
+use nebula_math::{Cubesphere, DVec3, SphereMap};
 use nebula_voxel::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, SurfaceBounds, Voxel, VoxelCoord,
     VoxelError, VoxelSource,
@@ -150,24 +150,6 @@ impl FloatingIslands {
         self.islands.iter().filter(|i| d.dot(i.up).clamp(-1.0, 1.0).acos() <= reach + i.angle()).collect()
     }
 
-    /// The unit direction voxel column `(ci, cj)` of `lod` on `face`
-    /// samples (its far-corner LOD-0 column's centre), read on the
-    /// neighbouring face beyond an edge, clamped into the face in the gap
-    /// at a cube corner (as the procedural planet does).
-    fn column_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> DVec3 {
-        let per_edge = i64::from(self.layout.voxels_per_edge(lod));
-        let (face, ci, cj) =
-            face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
-        let span = self.layout.voxel_span(lod) as f64;
-        self.layout.sphere().direction(face, (ci as f64 + 1.0) * span - 0.5, (cj as f64 + 1.0) * span - 0.5)
-    }
-
-    /// The radial layer (LOD 0, fractional) of the sample of radial voxel
-    /// `h` of `span` layers: its far-corner voxel's centre.
-    fn sample_layer(h: i64, span: f64) -> f64 {
-        (h + 1) as f64 * span - 0.5
-    }
-
     /// The ball (unit centre, radius in radians) holding chunk column
     /// `column`'s patch and a voxel around it.
     fn patch(&self, column: ChunkColumn) -> (DVec3, f64) {
@@ -195,9 +177,9 @@ impl VoxelSource for FloatingIslands {
 
     fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
         self.layout.check_voxel(at)?;
-        let d = self.column_direction(at.face, at.lod, i64::from(at.i), i64::from(at.j));
+        let d = self.layout.sample_direction(at.face, at.lod, i64::from(at.i), i64::from(at.j));
         let span = self.layout.voxel_span(at.lod) as f64;
-        let layer = Self::sample_layer(i64::from(at.h), span);
+        let layer = self.layout.sample_layer(i64::from(at.h), at.lod);
         let p = d * self.layout.sphere().layer_radius(layer);
         Ok(self.classify(p, layer, span, &self.islands_near(d, 0.0)))
     }
@@ -215,9 +197,9 @@ impl VoxelSource for FloatingIslands {
         let sphere = self.layout.sphere();
         for z in 0..PADDED_CHUNK_SIZE {
             for x in 0..PADDED_CHUNK_SIZE {
-                let d = self.column_direction(key.face, key.lod, base_i + i64::from(x), base_j + i64::from(z));
+                let d = self.layout.sample_direction(key.face, key.lod, base_i + i64::from(x), base_j + i64::from(z));
                 for y in 0..PADDED_CHUNK_SIZE {
-                    let layer = Self::sample_layer(base_h + i64::from(y), span);
+                    let layer = self.layout.sample_layer(base_h + i64::from(y), key.lod);
                     let voxel = self.classify(d * sphere.layer_radius(layer), layer, span, &near);
                     out.set([x, y, z], voxel);
                 }
