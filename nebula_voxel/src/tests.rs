@@ -888,6 +888,13 @@ fn canonical_settings_name_every_field_once_sorted() {
     assert_ne!(nudged.canonical(), pairs);
 }
 
+/// A random voxel column of some face, `per_edge` columns along its edge.
+fn random_column(state: &mut u64, per_edge: u32) -> (CubeFace, u32, u32) {
+    let face = CubeFace::ALL[(unit_random(state) * 6.0) as usize % 6];
+    let mut coord = || (unit_random(state) * f64::from(per_edge)) as u32;
+    (face, coord(), coord())
+}
+
 /// Marches `count` random land columns (H above sea level) of `planet` at
 /// LOD 0 from above the ground down to `depth_m` under it, and returns the
 /// share holding air under solid ground and the deepest such air under
@@ -900,11 +907,7 @@ fn air_under_the_ground(planet: &ProceduralPlanet, count: usize, depth_m: f64, s
     let mut state = seed;
     let (mut land, mut hollow, mut deepest) = (0, 0, 0.0_f64);
     while land < count {
-        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
-        let (i, j) = (
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-        );
+        let (face, i, j) = random_column(&mut state, per_edge);
         let height = planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5));
         if height < 2.0 * layer {
             continue;
@@ -961,11 +964,7 @@ fn cave_voxels(planet: &ProceduralPlanet, count: usize, seed: u64) -> Vec<VoxelC
     let mut state = seed;
     let mut found = Vec::new();
     while found.len() < count {
-        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
-        let (i, j) = (
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-        );
+        let (face, i, j) = random_column(&mut state, per_edge);
         let height = planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5)) / layer;
         if height < 2.0 {
             continue;
@@ -1057,11 +1056,7 @@ fn sky_floors_say_which_air_sees_the_sky() {
     let mut mouths = Vec::new();
     while mouths.len() < 6 {
         let per_edge = layout.voxels_per_edge(0);
-        let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
-        let (i, j) = (
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-            (unit_random(&mut state) * f64::from(per_edge)) as u32,
-        );
+        let (face, i, j) = random_column(&mut state, per_edge);
         let height =
             planet.height_at(sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5)) / sphere.layer_height();
         let top = (height - 0.5).ceil() as i32 - 1;
@@ -1148,12 +1143,7 @@ fn deep_caves_are_sealed_where_their_layers_are_left_out() {
             let at = layout.voxel_at(DVec3::new(-2_901_622.7, 5_671_976.6, -85_292.8) + offset * 40_000.0).unwrap();
             (at.face, at.i >> lod, at.j >> lod)
         } else {
-            let face = CubeFace::ALL[(unit_random(&mut state) * 6.0) as usize % 6];
-            (
-                face,
-                (unit_random(&mut state) * f64::from(per_edge)) as u32,
-                (unit_random(&mut state) * f64::from(per_edge)) as u32,
-            )
+            random_column(&mut state, per_edge)
         };
         let span = layout.voxel_span(lod) as f64;
         let direction = |i: u32, j: u32| {
