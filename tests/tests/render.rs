@@ -990,18 +990,23 @@ fn thousands_of_chunks_are_a_handful_of_draw_calls_drawing_the_same_picture() {
     }
 }
 
+/// A random LOD-0 voxel column of `planet` and the unit direction of its
+/// centre.
+fn random_lod0_column(planet: &ProceduralPlanet, rng: &mut Rng) -> (nebula_voxel::CubeFace, u32, u32, DVec3) {
+    let per_edge = f64::from(planet.layout().voxels_per_edge(0));
+    let face = nebula_voxel::CubeFace::ALL[(rng.next() * 6.0) as usize % 6];
+    let (i, j) = ((rng.next() * per_edge) as u32, (rng.next() * per_edge) as u32);
+    (face, i, j, planet.layout().sphere().direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5))
+}
+
 /// An eye inside a generated cave of `planet` and a point it looks at: the
 /// middle of a LOD-0 voxel of cave air (air under solid ground, with air
 /// over it for the head) in a random land column, looking level along the
 /// tunnel (of eight headings, the one with the farthest rock, up to 60 m).
 fn inside_a_cave(planet: &ProceduralPlanet, rng: &mut Rng) -> (DVec3, DVec3) {
-    let layout = planet.layout();
-    let sphere = layout.sphere();
-    let per_edge = f64::from(layout.voxels_per_edge(0));
+    let sphere = planet.layout().sphere();
     loop {
-        let face = nebula_voxel::CubeFace::ALL[(rng.next() * 6.0) as usize % 6];
-        let (i, j) = ((rng.next() * per_edge) as u32, (rng.next() * per_edge) as u32);
-        let up = sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5);
+        let (face, i, j, up) = random_lod0_column(planet, rng);
         let top = (planet.height_at(up) / sphere.layer_height()).floor() as i32;
         let air = |h: i32| !planet.voxel(nebula_voxel::VoxelCoord { face, lod: 0, i, j, h }).expect("voxel").is_solid();
         // Cave air two voxels tall, at least 3 voxels under solid ground.
@@ -1086,13 +1091,9 @@ fn skirt_pixels(rgba: &[u8], width: u32) -> Vec<(u32, u32)> {
 /// tunnels open there), seen from `distance` m away over the ground at a
 /// random heading, `height` m over the ground there.
 fn at_a_cave_mouth(planet: &ProceduralPlanet, rng: &mut Rng, distance: f64, height: f64) -> (DVec3, DVec3) {
-    let layout = planet.layout();
-    let sphere = layout.sphere();
-    let per_edge = f64::from(layout.voxels_per_edge(0));
+    let sphere = planet.layout().sphere();
     loop {
-        let face = nebula_voxel::CubeFace::ALL[(rng.next() * 6.0) as usize % 6];
-        let (i, j) = ((rng.next() * per_edge) as u32, (rng.next() * per_edge) as u32);
-        let up = sphere.direction(face, f64::from(i) + 0.5, f64::from(j) + 0.5);
+        let (face, i, j, up) = random_lod0_column(planet, rng);
         let height_layers = planet.height_at(up) / sphere.layer_height();
         // The heightfield's top voxel: its centre under H.
         let top = (height_layers - 0.5).ceil() as i32 - 1;
