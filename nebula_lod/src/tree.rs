@@ -36,7 +36,7 @@ use std::collections::{BTreeSet, BinaryHeap};
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use nebula_math::{DVec3, FaceEdge, ScreenSpace};
-use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, MAX_LOD, VoxelSource};
+use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, LayerView, MAX_LOD, VoxelSource};
 
 use crate::{
     BalanceMode, Camera, ChunkLodContext, CullMargin, FaceDirection, Frustum, Horizon, LodError, LodSettings,
@@ -77,7 +77,10 @@ pub struct LodStats {
 #[derive(Clone, Debug)]
 struct Node {
     bounds: NodeBounds,
+    /// First and last radial chunk layer that can hold surface.
     layers: (i32, i32),
+    /// The same as seen from each [`LayerView`] (by its index).
+    seen: [(i32, i32); 3],
     /// Bumped on every evaluation: stale queue entries carry an old one.
     generation: u32,
 }
@@ -260,6 +263,17 @@ impl LodTree {
     #[must_use]
     pub fn node_layers(&self, column: ChunkColumn) -> Option<std::ops::RangeInclusive<i32>> {
         self.nodes.get(&column).map(|node| node.layers.0..=node.layers.1)
+    }
+
+    /// Of [`LodTree::node_layers`], those an eye with `view` sees
+    /// ([`VoxelSource::surface_chunk_layers_seen`]), asked of the source
+    /// when the node was made.
+    #[must_use]
+    pub fn node_layers_seen(&self, column: ChunkColumn, view: LayerView) -> Option<std::ops::RangeInclusive<i32>> {
+        self.nodes.get(&column).map(|node| {
+            let (first, last) = node.seen[view.index()];
+            first..=last
+        })
     }
 
     /// The neighbour relations of a leaf, by [`FaceDirection`], as the
@@ -599,14 +613,14 @@ impl LodTree {
         }
         let mut gained = Vec::new();
         for column in covering {
-            let surface = source.surface_bounds(column)?;
-            let layers = source.surface_chunk_layers(column)?;
-            let layers = (*layers.start(), *layers.end());
-            let bounds = NodeBounds::new(&self.layout, column, &surface);
+            let survey = source.surface_survey(column)?;
+            let layers = survey.layers(LayerView::All).into_inner();
+            let bounds = NodeBounds::new(&self.layout, column, &survey.bounds);
             self.min_surface_radius = self.min_surface_radius.min(bounds.min_radius);
             if let Some(node) = self.nodes.get_mut(&column) {
                 node.bounds = bounds;
                 node.layers = layers;
+                node.seen = LayerView::ALL.map(|view| survey.layers(view).into_inner());
             }
             if let Some(leaf) = self.leaves.get_mut(&column) {
                 let old = leaf.1;
@@ -623,10 +637,11 @@ impl LodTree {
         if self.nodes.contains_key(&column) {
             return Ok(());
         }
-        let surface = source.surface_bounds(column)?;
-        let layers = source.surface_chunk_layers(column)?;
-        let bounds = NodeBounds::new(&self.layout, column, &surface);
-        self.nodes.insert(column, Node { bounds, layers: (*layers.start(), *layers.end()), generation: 0 });
+        // One question to the source for the bounds and every view's layers.
+        let survey = source.surface_survey(column)?;
+        let bounds = NodeBounds::new(&self.layout, column, &survey.bounds);
+        let seen = LayerView::ALL.map(|view| survey.layers(view).into_inner());
+        self.nodes.insert(column, Node { bounds, layers: seen[LayerView::All.index()], seen, generation: 0 });
         Ok(())
     }
 

@@ -26,7 +26,7 @@ use nebula_math::{DVec3, FaceEdge};
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, PADDED_CHUNK_SIZE, PaddedChunkShape,
-    SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
+    SurfaceBounds, SurfaceSurvey, Voxel, VoxelCoord, VoxelError, VoxelSource,
 };
 use ndshape::ConstShape;
 
@@ -306,6 +306,23 @@ impl<S: VoxelSource> EditedSource<S> {
     }
 }
 
+impl<S: VoxelSource> EditedSource<S> {
+    /// `bounds` of the base's `column`, widened to hold its edits.
+    fn widened(&self, column: ChunkColumn, mut bounds: SurfaceBounds) -> SurfaceBounds {
+        if let Some(&(low, high)) = self.touched_columns.get(&column) {
+            let span = self.layout().voxel_span(column.lod);
+            bounds.min_layer = bounds.min_layer.min(low - span);
+            bounds.max_layer = bounds.max_layer.max(high + span);
+            let sphere = self.layout().sphere();
+            bounds.min_radius = sphere.layer_radius(bounds.min_layer as f64);
+            bounds.max_radius = sphere.layer_radius(bounds.max_layer as f64 + 1.0);
+            // An edit may have put anything there.
+            bounds.sea_bed_only = false;
+        }
+        bounds
+    }
+}
+
 impl<S: VoxelSource> VoxelSource for EditedSource<S> {
     fn layout(&self) -> &ChunkLayout {
         self.base.layout()
@@ -340,18 +357,15 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
     }
 
     fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
-        let mut bounds = self.base.surface_bounds(column)?;
-        if let Some(&(low, high)) = self.touched_columns.get(&column) {
-            let span = self.layout().voxel_span(column.lod);
-            bounds.min_layer = bounds.min_layer.min(low - span);
-            bounds.max_layer = bounds.max_layer.max(high + span);
-            let sphere = self.layout().sphere();
-            bounds.min_radius = sphere.layer_radius(bounds.min_layer as f64);
-            bounds.max_radius = sphere.layer_radius(bounds.max_layer as f64 + 1.0);
-            // An edit may have put anything there.
-            bounds.sea_bed_only = false;
-        }
-        Ok(bounds)
+        Ok(self.widened(column, self.base.surface_bounds(column)?))
+    }
+
+    fn surface_survey(&self, column: ChunkColumn) -> Result<SurfaceSurvey, VoxelError> {
+        // Edits reach only the layers of all (`layer_view` says so).
+        let base = self.base.surface_survey(column)?;
+        let bounds = self.widened(column, base.bounds);
+        let all = bounds.chunk_layers(self.layout(), column.lod);
+        Ok(SurfaceSurvey::new(bounds, |view| if view == LayerView::All { all.clone() } else { base.layers(view) }))
     }
 
     fn geometric_error(&self, lod: u8) -> f64 {

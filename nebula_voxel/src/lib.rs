@@ -78,7 +78,7 @@ pub use layout::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, MAX_LOD, VoxelC
 pub use nebula_math::{CubeFace, DVec3, FaceDirection, FaceEdge};
 pub use pick::{VoxelHit, pick};
 pub use planet::{PlanetSettings, ProceduralPlanet};
-pub use source::{LayerView, SurfaceBounds, VoxelSource};
+pub use source::{LayerView, SurfaceBounds, SurfaceSurvey, VoxelSource};
 pub use voxel::Voxel;
 
 #[cfg(test)]

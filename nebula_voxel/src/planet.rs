@@ -103,7 +103,7 @@ use nebula_math::{CubeFace, Cubesphere, SphereMap};
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, MAX_LOD, PADDED_CHUNK_SIZE,
-    PaddedChunkShape, SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
+    PaddedChunkShape, SurfaceBounds, SurfaceSurvey, Voxel, VoxelCoord, VoxelError, VoxelSource,
 };
 use ndshape::ConstShape;
 
@@ -1117,19 +1117,25 @@ pub(crate) fn smoothstep(x: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// What the surface bounds of a column are made from: its heights' range
+/// and slope, found once (the noise), for bounds with any cave depth
+/// ([`ProceduralPlanet::bounds_reaching`]: arithmetic alone).
+struct ColumnRelief {
+    column: ChunkColumn,
+    /// Voxel span at the column's LOD, in layers.
+    span: f64,
+    /// Range of H over the column and a voxel beyond, in layers.
+    low: f64,
+    high: f64,
+    /// The slope bound over it.
+    slope: f64,
+    /// Whether a cave may lie under it.
+    caves_near: bool,
+}
+
 impl ProceduralPlanet {
-    /// [`VoxelSource::surface_bounds`] with caves reaching `cave_depth`
-    /// layers under the ground: all of them (`Caves::deepest`), or the
-    /// shallow network alone where the deep one is sealed
-    /// ([`VoxelSource::surface_chunk_layers_seen`]); and with `sealed_top`,
-    /// only what lies under that many layers of rock (the sealed caves'
-    /// surface, seen from inside them).
-    fn bounds_reaching(
-        &self,
-        column: ChunkColumn,
-        cave_depth: f64,
-        sealed_top: Option<f64>,
-    ) -> Result<SurfaceBounds, VoxelError> {
+    /// The noise behind [`VoxelSource::surface_bounds`] for `column`.
+    fn column_relief(&self, column: ChunkColumn) -> Result<ColumnRelief, VoxelError> {
         self.layout.check_key(column.chunk(0))?;
         let span = self.layout.voxel_span(column.lod) as f64;
         let chunk = f64::from(CHUNK_SIZE) * span;
@@ -1163,29 +1169,41 @@ impl ProceduralPlanet {
             high = high.min(sampled_high + margin);
         }
         let (lowest, highest) = (self.lowest() / self.layer_height, self.highest() / self.layer_height);
+        let (low, high) = (low.max(lowest), high.min(highest));
+        let caves_near = self.caves.at_lod(column.lod)
+            && high + span >= crate::caves::SEA_MARGIN_LAYERS
+            && self.caves.may_be_near(ball.0, ball.1);
+        Ok(ColumnRelief { column, span, low, high, slope, caves_near })
+    }
+
+    /// [`VoxelSource::surface_bounds`] of the column of `relief` with caves
+    /// reaching `cave_depth` layers under the ground: all of them
+    /// (`Caves::deepest`), or the shallow network alone where the deep one
+    /// is sealed ([`VoxelSource::surface_chunk_layers_seen`]); and with
+    /// `sealed_top`, only what lies under that many layers of rock (the
+    /// sealed caves' surface, seen from inside them).
+    fn bounds_reaching(&self, relief: &ColumnRelief, cave_depth: f64, sealed_top: Option<f64>) -> SurfaceBounds {
+        let ColumnRelief { column, span, low, high, slope, caves_near } = *relief;
         // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
         // column's height H. A solid voxel with air beside it lies down to
         // the top of the neighbouring voxel column, whose sample is up to
         // one voxel (span cells) further out: S·span lower still, and its
         // top again up to a voxel below its H.
         let neighbour = slope * span + span;
-        let mut min_layer = (low.max(lowest) + 0.5 - span - neighbour).floor() as i64;
+        let mut min_layer = (low + 0.5 - span - neighbour).floor() as i64;
         // Cave air lies at most `deepest` layers under its column's H
         // (which is above `low − neighbour` over the patch and a voxel
         // beyond), above the sea; the rock under and beside it a voxel
         // lower still.
-        if self.caves.at_lod(column.lod)
-            && high + span >= crate::caves::SEA_MARGIN_LAYERS
-            && self.caves.may_be_near(ball.0, ball.1)
-        {
-            let cave_floor = (low.max(lowest) - neighbour - cave_depth - span).floor() as i64 - 1;
+        if caves_near {
+            let cave_floor = (low - neighbour - cave_depth - span).floor() as i64 - 1;
             min_layer = min_layer.min(cave_floor);
         }
-        let mut max_layer = (high.min(highest) + 0.5).ceil() as i64;
+        let mut max_layer = (high + 0.5).ceil() as i64;
         if let Some(top) = sealed_top {
             // The rock over the sealed air, a voxel up, under the highest
             // ground near the patch.
-            max_layer = max_layer.min((high.min(highest) + 0.5 + span - top).ceil() as i64 + 1);
+            max_layer = max_layer.min((high + 0.5 + span - top).ceil() as i64 + 1);
         }
         let sphere = self.layout.sphere();
         // Every column's H is below `high`; where that is under the sea and under the snow line (which dips
@@ -1193,13 +1211,28 @@ impl ProceduralPlanet {
         // (`surface`), and so is every voxel under it (`classify_depth`).
         let highest_m = high * self.layer_height;
         let sea_bed_only = highest_m < 0.0 && highest_m < self.lowest_snow_line(column);
-        Ok(SurfaceBounds {
+        SurfaceBounds {
             min_layer,
             max_layer,
             min_radius: sphere.layer_radius(min_layer as f64),
             max_radius: sphere.layer_radius(max_layer as f64 + 1.0),
             sea_bed_only,
-        })
+        }
+    }
+
+    /// The bounds of the surface an eye with `view` sees in the column of
+    /// `relief`.
+    fn bounds_seen(&self, relief: &ColumnRelief, view: LayerView) -> SurfaceBounds {
+        match view {
+            _ if !self.hides_buried(relief.column.lod) => self.bounds_reaching(relief, self.caves.deepest(), None),
+            LayerView::All => self.bounds_reaching(relief, self.caves.deepest(), None),
+            LayerView::FromAbove => self.bounds_reaching(relief, self.caves.shallow_deepest(), None),
+            LayerView::FromSealedCaves => self.bounds_reaching(
+                relief,
+                self.caves.deepest(),
+                Some(self.caves.shallow_deepest() + self.caves.separation()),
+            ),
+        }
     }
 }
 
@@ -1242,7 +1275,7 @@ impl VoxelSource for ProceduralPlanet {
     }
 
     fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
-        self.bounds_reaching(column, self.caves.deepest(), None)
+        Ok(self.bounds_reaching(&self.column_relief(column)?, self.caves.deepest(), None))
     }
 
     fn layer_view(&self, eye: nebula_math::DVec3) -> LayerView {
@@ -1267,17 +1300,16 @@ impl VoxelSource for ProceduralPlanet {
         column: ChunkColumn,
         view: LayerView,
     ) -> Result<std::ops::RangeInclusive<i32>, VoxelError> {
-        let bounds = match view {
-            _ if !self.hides_buried(column.lod) => self.surface_bounds(column)?,
-            LayerView::All => self.surface_bounds(column)?,
-            LayerView::FromAbove => self.bounds_reaching(column, self.caves.shallow_deepest(), None)?,
-            LayerView::FromSealedCaves => self.bounds_reaching(
-                column,
-                self.caves.deepest(),
-                Some(self.caves.shallow_deepest() + self.caves.separation()),
-            )?,
-        };
+        let bounds = self.bounds_seen(&self.column_relief(column)?, view);
         Ok(bounds.chunk_layers(&self.layout, column.lod))
+    }
+
+    fn surface_survey(&self, column: ChunkColumn) -> Result<SurfaceSurvey, VoxelError> {
+        // One noise evaluation for every view.
+        let relief = self.column_relief(column)?;
+        Ok(SurfaceSurvey::new(self.bounds_seen(&relief, LayerView::All), |view| {
+            self.bounds_seen(&relief, view).chunk_layers(&self.layout, column.lod)
+        }))
     }
 
     fn lowest_surface_radius(&self) -> Option<f64> {

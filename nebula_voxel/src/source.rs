@@ -36,6 +36,43 @@ pub enum LayerView {
     FromSealedCaves,
 }
 
+impl LayerView {
+    /// Every view, in the order of [`LayerView::index`].
+    pub const ALL: [LayerView; 3] = [LayerView::All, LayerView::FromAbove, LayerView::FromSealedCaves];
+
+    /// This view's place in [`LayerView::ALL`].
+    #[must_use]
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// A column's surface bounds and the radial chunk layers an eye with each
+/// [`LayerView`] sees of it ([`VoxelSource::surface_survey`]): what the LOD
+/// tree keeps of every node, asked once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceSurvey {
+    /// [`VoxelSource::surface_bounds`].
+    pub bounds: SurfaceBounds,
+    /// First and last layer seen, by [`LayerView::index`].
+    seen: [(i32, i32); 3],
+}
+
+impl SurfaceSurvey {
+    /// A survey whose layers seen from each view are `seen(view)`.
+    pub fn new(bounds: SurfaceBounds, mut seen: impl FnMut(LayerView) -> RangeInclusive<i32>) -> Self {
+        Self { bounds, seen: LayerView::ALL.map(|view| seen(view).into_inner()) }
+    }
+
+    /// The radial chunk layers an eye with `view` sees
+    /// ([`VoxelSource::surface_chunk_layers_seen`]).
+    #[must_use]
+    pub fn layers(&self, view: LayerView) -> RangeInclusive<i32> {
+        let (first, last) = self.seen[view.index()];
+        first..=last
+    }
+}
+
 impl SurfaceBounds {
     /// The radial chunk layers of a column at `lod` these bounds reach.
     #[must_use]
@@ -148,7 +185,8 @@ pub trait VoxelSource: Send + Sync {
     /// `view` can see: by default all of
     /// [`VoxelSource::surface_chunk_layers`]. A source that leaves layers
     /// out promises that no ray from such an eye reaches their surface
-    /// without passing through rock first.
+    /// without passing through rock first, and says the same in
+    /// [`VoxelSource::surface_survey`] (what the streamer reads).
     ///
     /// # Errors
     /// As [`VoxelSource::surface_bounds`].
@@ -159,6 +197,24 @@ pub trait VoxelSource: Send + Sync {
     ) -> Result<RangeInclusive<i32>, VoxelError> {
         let _ = view;
         self.surface_chunk_layers(column)
+    }
+
+    /// [`VoxelSource::surface_bounds`] and the layers each view sees
+    /// ([`VoxelSource::surface_chunk_layers_seen`]) at once: what the LOD
+    /// tree asks of every node it makes, so that the streamer finds a
+    /// column's layers there instead of asking the source on the frame
+    /// thread. By default every view sees every layer of the bounds (one
+    /// call to `surface_bounds`): a source that leaves layers out of a view
+    /// overrides this too (the procedural planet answers every view from
+    /// one evaluation); one that does not has every layer drawn, which is
+    /// never wrong, only more to mesh.
+    ///
+    /// # Errors
+    /// As [`VoxelSource::surface_bounds`].
+    fn surface_survey(&self, column: ChunkColumn) -> Result<SurfaceSurvey, VoxelError> {
+        let bounds = self.surface_bounds(column)?;
+        let all = bounds.chunk_layers(self.layout(), column.lod);
+        Ok(SurfaceSurvey::new(bounds, |_| all.clone()))
     }
 }
 

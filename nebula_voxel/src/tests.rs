@@ -1205,3 +1205,54 @@ fn deep_caves_are_sealed_where_their_layers_are_left_out() {
     println!("{components} deep caves, {flooded} air voxels flooded, none open");
     assert!(flooded > 1_000);
 }
+
+#[test]
+fn a_survey_answers_each_view_as_the_source_does_one_by_one() {
+    // The LOD tree asks `surface_survey` once per node and the streamer
+    // reads each view's layers from it: it must say what
+    // `surface_bounds` and `surface_chunk_layers_seen` say, on planets
+    // with and without caves, edited or not, at every LOD with caves and
+    // above. (A survey that gave every view all layers would pass the
+    // `All` rows and fail the others: the control below.)
+    let mut edited = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(3)).unwrap());
+    let up = DVec3::new(0.2, 0.9, 0.4).normalize();
+    let ground = edited.base().surface_point(up);
+    let half = DVec3::splat(3.0 * edited.base().voxel_size());
+    edited.fill_box(ground - half, ground + half * 4.0, Voxel::STONE).unwrap();
+    // The edited voxel's columns at every LOD, then random ones.
+    let mut edited_columns = Vec::new();
+    let mut at = Some(edited.layout().voxel_at(ground).unwrap());
+    while let Some(voxel) = at.filter(|v| v.lod <= 5) {
+        edited_columns.push(edited.layout().chunk_of(voxel).column());
+        at = voxel.parent();
+    }
+    let sources: [(&str, Box<dyn VoxelSource>); 4] = [
+        ("earth", Box::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap())),
+        ("small", Box::new(ProceduralPlanet::new(PlanetSettings::small(3)).unwrap())),
+        (
+            "no caves",
+            Box::new(ProceduralPlanet::new(PlanetSettings { cave_size: 0.0, ..PlanetSettings::small(3) }).unwrap()),
+        ),
+        ("edited", Box::new(edited)),
+    ];
+    let mut state = 0x5eed_u64;
+    let mut narrower = 0;
+    for (name, source) in &sources {
+        let layout = *source.layout();
+        let random = (0..=5u8).flat_map(|lod| std::iter::repeat_n(lod, 40)).map(|lod| {
+            let (face, x, y) = random_column(&mut state, layout.chunks_per_edge(lod));
+            ChunkColumn { face, lod, x, y }
+        });
+        for column in edited_columns.iter().copied().chain(random.collect::<Vec<_>>()) {
+            let survey = source.surface_survey(column).unwrap();
+            assert_eq!(survey.bounds, source.surface_bounds(column).unwrap(), "{name} {column:?}");
+            for view in LayerView::ALL {
+                let seen = source.surface_chunk_layers_seen(column, view).unwrap();
+                assert_eq!(survey.layers(view), seen, "{name} {column:?} {view:?}");
+                narrower += usize::from(seen != source.surface_chunk_layers(column).unwrap());
+            }
+        }
+    }
+    println!("{narrower} column views narrower than all layers");
+    assert!(narrower > 0, "no view left a layer out: the check cannot tell");
+}

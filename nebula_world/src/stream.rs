@@ -191,10 +191,11 @@ impl Held {
     }
 }
 
-/// The radial layers of `column` to mesh and draw: those that hold
-/// surface, from the tree's node when the tree holds one (no noise on the
-/// frame thread), else from the source; of those, the ones an eye with
-/// `view` can see ([`VoxelSource::surface_chunk_layers_seen`]).
+/// The radial layers of `column` to mesh and draw: those an eye with
+/// `view` can see ([`VoxelSource::surface_chunk_layers_seen`]), from the
+/// tree's node when the tree holds one (asked of the source when the node
+/// was made, on the LOD thread: no noise on the frame thread), else from
+/// the source.
 fn column_layers<S: VoxelSource + ?Sized>(
     voxels: &S,
     tree: &LodTree,
@@ -202,16 +203,9 @@ fn column_layers<S: VoxelSource + ?Sized>(
     view: LayerView,
 ) -> Vec<i32> {
     // A failed bounds query: no layers.
-    let Some(all) = tree.node_layers(column).or_else(|| voxels.surface_chunk_layers(column).ok()) else {
-        return Vec::new();
-    };
-    if view == LayerView::All {
-        return all.collect();
-    }
-    match voxels.surface_chunk_layers_seen(column, view) {
-        Ok(seen) => all.filter(|layer| seen.contains(layer)).collect(),
-        Err(_) => all.collect(),
-    }
+    tree.node_layers_seen(column, view)
+        .or_else(|| voxels.surface_chunk_layers_seen(column, view).ok())
+        .map_or_else(Vec::new, Iterator::collect)
 }
 
 /// The meshes of one chunk column (all its radial layers).
