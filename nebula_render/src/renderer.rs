@@ -357,6 +357,11 @@ pub struct PlanetRenderer {
     page_draws: Vec<PageDraws>,
     /// The same draws on the CPU (the direct-draw fallback reads them).
     draw_args: Vec<DrawIndexedIndirectArgs>,
+    /// The frame's chunk constants and draws by page as they are made,
+    /// kept for their allocations (made anew each frame, their growth and
+    /// page faults were a good part of the frame's encoding).
+    chunk_uniforms: Vec<ChunkUniform>,
+    by_page: Vec<Vec<DrawIndexedIndirectArgs>>,
     /// Whether draws go through the indirect buffer (the device can start
     /// an indirect draw at an instance).
     indirect_draws: bool,
@@ -651,6 +656,8 @@ impl PlanetRenderer {
             indirect_capacity: 1024,
             page_draws: Vec::new(),
             draw_args: Vec::new(),
+            chunk_uniforms: Vec::new(),
+            by_page: Vec::new(),
             indirect_draws,
             depth: None,
             sky_pipeline,
@@ -818,9 +825,12 @@ impl PlanetRenderer {
         // index; one indirect draw per drawn range (the surface but the
         // sides looking away, and only the skirts lowered this frame),
         // grouped by the page holding the mesh.
-        let mut chunk_uniforms = Vec::new();
-        let mut by_page: Vec<Vec<DrawIndexedIndirectArgs>> = Vec::new();
+        let (chunk_uniforms, by_page) = (&mut self.chunk_uniforms, &mut self.by_page);
+        chunk_uniforms.clear();
+        by_page.iter_mut().for_each(Vec::clear);
         for (mesh, draw) in meshes {
+            // An empty mesh draws nothing and needs no constants.
+            let Some(slot) = &mesh.slot else { continue };
             let instance = chunk_uniforms.len() as u32;
             chunk_uniforms.push(ChunkUniform {
                 info: [
@@ -831,13 +841,13 @@ impl PlanetRenderer {
                 ],
                 skirt_depths: draw.skirt_depths,
             });
-            let Some(slot) = &mesh.slot else { continue };
             if by_page.len() <= slot.page {
                 by_page.resize_with(slot.page + 1, Vec::new);
             }
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
+            let page = &mut by_page[slot.page];
             for range in drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, &draw) {
-                by_page[slot.page].push(DrawIndexedIndirectArgs {
+                page.push(DrawIndexedIndirectArgs {
                     index_count: range.len() as u32,
                     instance_count: 1,
                     first_index: first + range.start as u32,
@@ -852,14 +862,14 @@ impl PlanetRenderer {
             self.chunk_capacity = capacity;
         }
         if !chunk_uniforms.is_empty() {
-            self.queue.write_buffer(&self.chunk_buffer, 0, bytemuck::cast_slice(&chunk_uniforms));
+            self.queue.write_buffer(&self.chunk_buffer, 0, bytemuck::cast_slice(chunk_uniforms));
         }
         self.draw_args.clear();
         self.page_draws.clear();
-        for (page, draws) in by_page.into_iter().enumerate().filter(|(_, d)| !d.is_empty()) {
+        for (page, draws) in by_page.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
             let first = self.draw_args.len() as u32;
             self.page_draws.push(PageDraws { page, first, count: draws.len() as u32 });
-            self.draw_args.extend(draws);
+            self.draw_args.extend_from_slice(draws);
         }
         if self.indirect_draws && !self.draw_args.is_empty() {
             if self.draw_args.len() as u64 > self.indirect_capacity {
