@@ -15,7 +15,7 @@ use nebula_voxel::{ChunkKey, EditedSource, ProceduralPlanet};
 pub use nebula_world::ecs::PlanetStream;
 pub use nebula_world::stream::{
     DrawList, DrawOptions, MeshCache, MorphRule, OpaqueSea, STAND_IN_LEVEL_STEP, StageTimes,
-    StreamFigures as FrameFigures, Streamer,
+    StreamFigures as FrameFigures, Streamer, Uploader,
 };
 
 /// The voxels the demo draws: the procedural planet with the player's
@@ -90,8 +90,11 @@ impl PlanetApp {
             &RendererOptions { color_format: context.color_format },
         )?;
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
-        let streamer =
+        let mut streamer =
             Streamer::new(planet, settings, view.camera, threads, &mut |key, mesh| renderer.upload(key, mesh))?;
+        // The meshing threads upload what they make (the frame copies no
+        // mesh bytes); `--mesh-thread-uploads false` turns it off.
+        streamer.set_uploader(Some(mesh_uploader(&renderer)));
         let refined = streamer.tree().screen_space().threshold_px();
         if refined > settings.threshold_px {
             eprintln!(
@@ -130,6 +133,12 @@ impl PlanetApp {
         let radius = nebula_voxel::VoxelSource::layout(&**self.streamer().voxels()).sphere().radius();
         let sea = drawn.then(|| OpaqueSea { radius, hiding_depth: nebula_render::sea_hiding_depth(radius) });
         self.streamer_mut().0.set_opaque_sea(sea);
+    }
+
+    /// An uploader into the renderer's buffers for the streamer's meshing
+    /// threads (`Streamer::set_uploader`).
+    pub fn mesh_uploader(&self) -> Uploader<GpuMesh> {
+        mesh_uploader(self.renderer())
     }
 
     /// Keep CPU copies of meshes (needed by the crack oracle).
@@ -332,4 +341,10 @@ fn stream_system(mut stream: ResMut<Stream>, view: Res<View>, gpu: Res<Gpu>) {
 #[must_use]
 pub fn camera(position: DVec3, forward: DVec3, up: DVec3, aspect: f64) -> Camera {
     Camera { position, forward, up, aspect }
+}
+
+/// Uploads into `renderer`'s buffers from the streamer's meshing threads.
+fn mesh_uploader(renderer: &PlanetRenderer) -> Uploader<GpuMesh> {
+    let uploader = renderer.uploader();
+    Arc::new(move |key, mesh| uploader.upload(key, mesh))
 }

@@ -135,6 +135,10 @@ struct Args {
     /// (`false`: on the frame thread, as before; for comparing).
     #[arg(long, value_name = "BOOL", default_value_t = true, action = clap::ArgAction::Set)]
     lod_thread: bool,
+    /// Upload each mesh on the meshing thread that made it (`false`: on the
+    /// frame thread, as before; for comparing).
+    #[arg(long, value_name = "BOOL", default_value_t = true, action = clap::ArgAction::Set)]
+    mesh_thread_uploads: bool,
     /// Mesh memory the streamer keeps at most, MiB (renderer buffers and
     /// CPU copies): past it the meshes used longest ago are freed.
     #[arg(long, value_name = "MIB", default_value_t = nebula_world::stream::MeshCache::<nebula_render::GpuMesh>::default_max_bytes() >> 20)]
@@ -431,7 +435,9 @@ fn draw_options(args: &Args) -> DrawOptions {
 fn configure(app: &mut PlanetApp, args: &Args) {
     app.set_draw_options(draw_options(args));
     set_multisampling(app, args.msaa);
+    let uploader = args.mesh_thread_uploads.then(|| app.mesh_uploader());
     let mut stream = app.streamer_mut();
+    stream.0.set_uploader(uploader);
     stream.0.set_lod_thread(args.lod_thread);
     stream.0.cache.max_bytes = args.mesh_budget_mb.saturating_mul(1 << 20);
 }

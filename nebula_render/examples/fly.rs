@@ -78,7 +78,10 @@ impl App {
         };
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
         let voxels = Arc::new(EditedSource::from(planet.clone()));
-        let streamer = Streamer::new(voxels, lod, camera, threads, &mut |key, mesh| renderer.upload(key, mesh))?;
+        let mut streamer = Streamer::new(voxels, lod, camera, threads, &mut |key, mesh| renderer.upload(key, mesh))?;
+        // The meshing threads upload what they make: the frame copies none.
+        let uploader = renderer.uploader();
+        streamer.set_uploader(Some(Arc::new(move |key, mesh| uploader.upload(key, mesh))));
         Ok(Flying { window, surface, config, gpu, renderer, planet, streamer })
     }
 

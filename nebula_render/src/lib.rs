@@ -69,7 +69,7 @@ mod renderer;
 pub mod sun;
 
 pub use renderer::{
-    COLOR_FORMAT, DEPTH_FORMAT, DebugView, FrameParams, FrameStats, GpuMesh, PlanetRenderer, RenderError,
+    COLOR_FORMAT, DEPTH_FORMAT, DebugView, FrameParams, FrameStats, GpuMesh, MeshUploader, PlanetRenderer, RenderError,
     RendererOptions, SEA_MASK_FORMAT, SMOOTH_SAMPLES, SPACE, WANTED_FEATURES, eye_in_sea, overlay_pass,
     sea_hiding_depth, view_projection, water_extinction,
 };

@@ -385,10 +385,79 @@ pub struct PlanetRenderer {
     /// GPU timings, where the device has timestamps.
     timer: Option<GpuTimer>,
     stats: FrameStats,
+    /// The chunk meshes' buffers and the uploads into them, shared with
+    /// the threads that upload ([`PlanetRenderer::uploader`]).
+    uploader: Arc<MeshUploader>,
+}
+
+/// Uploads chunk meshes into a [`PlanetRenderer`]'s buffers from any
+/// thread ([`PlanetRenderer::uploader`]): the streamer's meshing threads
+/// upload what they make (`nebula_world::stream::Streamer::set_uploader`),
+/// so the frame thread copies no mesh bytes. The copies are recorded as
+/// they come and submitted ahead of the renderer's next frame.
+pub struct MeshUploader {
+    device: wgpu::Device,
     /// The chunk meshes' buffers.
     arena: MeshArena,
     /// Uploads not yet submitted.
     uploads: std::sync::Mutex<Uploads>,
+}
+
+impl MeshUploader {
+    /// Copies a chunk's mesh into the renderer's buffers (what the
+    /// streamer's mesh maker does, [`PlanetRenderer::upload`]).
+    #[must_use]
+    pub fn upload(&self, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
+        // A small number from the key, for the chunk-colour view.
+        let id = key.x.wrapping_mul(73_856_093)
+            ^ key.y.wrapping_mul(19_349_663)
+            ^ (key.layer as u32).wrapping_mul(83_492_791)
+            ^ ((key.face as u32) << 3);
+        let mut uploads = self.uploads();
+        let Uploads { belt, encoder } = &mut *uploads;
+        let encoder = encoder.get_or_insert_with(|| {
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("chunk uploads") })
+        });
+        let mut write = |target: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
+            if let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) {
+                belt.write_buffer(encoder, target, offset, size).copy_from_slice(bytes);
+            }
+        };
+        let slot = self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices);
+        GpuMesh {
+            slot,
+            surface_side_ranges: mesh.surface_side_ranges.clone(),
+            skirt_ranges: mesh.skirt_ranges.clone(),
+            lod: key.lod,
+            id: id % 4096,
+            bytes: mesh.bytes(),
+        }
+    }
+
+    /// The pending uploads. A panic while they were locked cannot have
+    /// left a copy half recorded (each is recorded whole), so a poisoned
+    /// lock's state is taken as it is.
+    fn uploads(&self) -> std::sync::MutexGuard<'_, Uploads> {
+        self.uploads.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The copies of the uploads made since the last submission, closed.
+    fn take(&self) -> Option<wgpu::CommandBuffer> {
+        let encoder = {
+            let mut uploads = self.uploads();
+            let encoder = uploads.encoder.take()?;
+            uploads.belt.finish();
+            encoder
+        };
+        // Closed outside the lock: an uploading thread need not wait.
+        Some(encoder.finish())
+    }
+
+    /// Lets the staging buffers of submitted uploads be reused once the
+    /// GPU is done with them.
+    fn recall(&self) {
+        self.uploads().belt.recall();
+    }
 }
 
 /// Mesh uploads staged in reused mapped buffers and recorded as copies,
@@ -671,10 +740,13 @@ impl PlanetRenderer {
             prepared: None,
             timer,
             stats: FrameStats::default(),
-            arena: MeshArena::default(),
-            uploads: std::sync::Mutex::new(Uploads {
-                belt: wgpu::util::StagingBelt::new(device.clone(), STAGING_CHUNK_BYTES),
-                encoder: None,
+            uploader: Arc::new(MeshUploader {
+                device: device.clone(),
+                arena: MeshArena::default(),
+                uploads: std::sync::Mutex::new(Uploads {
+                    belt: wgpu::util::StagingBelt::new(device.clone(), STAGING_CHUNK_BYTES),
+                    encoder: None,
+                }),
             }),
         })
     }
@@ -718,30 +790,16 @@ impl PlanetRenderer {
     /// `nebula_world::stream::Streamer::update` asks for.
     #[must_use]
     pub fn upload(&self, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
-        // A small number from the key, for the chunk-colour view.
-        let id = key.x.wrapping_mul(73_856_093)
-            ^ key.y.wrapping_mul(19_349_663)
-            ^ (key.layer as u32).wrapping_mul(83_492_791)
-            ^ ((key.face as u32) << 3);
-        let mut uploads = self.uploads();
-        let Uploads { belt, encoder } = &mut *uploads;
-        let encoder = encoder.get_or_insert_with(|| {
-            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("chunk uploads") })
-        });
-        let mut write = |target: &wgpu::Buffer, offset: u64, bytes: &[u8]| {
-            if let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) {
-                belt.write_buffer(encoder, target, offset, size).copy_from_slice(bytes);
-            }
-        };
-        let slot = self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices);
-        GpuMesh {
-            slot,
-            surface_side_ranges: mesh.surface_side_ranges.clone(),
-            skirt_ranges: mesh.skirt_ranges.clone(),
-            lod: key.lod,
-            id: id % 4096,
-            bytes: mesh.bytes(),
-        }
+        self.uploader.upload(key, mesh)
+    }
+
+    /// A handle that uploads into this renderer's buffers from other
+    /// threads ([`MeshUploader`]): give it to the streamer's meshing
+    /// threads (`Streamer::set_uploader`) and the frame thread copies no
+    /// mesh.
+    #[must_use]
+    pub fn uploader(&self) -> Arc<MeshUploader> {
+        self.uploader.clone()
     }
 
     /// Submits the uploads made since the last call (`prepare` and
@@ -756,25 +814,15 @@ impl PlanetRenderer {
         let _ = self.device.poll(wgpu::PollType::Poll);
     }
 
-    /// The pending uploads. A panic while they were locked cannot have
-    /// left a copy half recorded (each is recorded whole), so a poisoned
-    /// lock's state is taken as it is.
-    fn uploads(&self) -> std::sync::MutexGuard<'_, Uploads> {
-        self.uploads.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
     /// The copies of the uploads made since the last submission, closed.
     fn take_uploads(&self) -> Option<wgpu::CommandBuffer> {
-        let mut uploads = self.uploads();
-        let encoder = uploads.encoder.take()?;
-        uploads.belt.finish();
-        Some(encoder.finish())
+        self.uploader.take()
     }
 
     /// Lets the staging buffers of submitted uploads be reused once the
     /// GPU is done with them.
     fn recall_staging(&self) {
-        self.uploads().belt.recall();
+        self.uploader.recall();
     }
 
     /// Writes the frame's constants and its draw list for a `size` target:
@@ -789,6 +837,19 @@ impl PlanetRenderer {
         meshes: impl IntoIterator<Item = (&'a GpuMesh, ChunkDraw)>,
     ) {
         self.finish_uploads();
+        self.prepare_draws(frame, size, meshes);
+    }
+
+    /// [`Self::prepare`] but for the uploads, which the caller submits
+    /// ahead of the draws. (Taking them twice in a frame would let the
+    /// staging belt recall buffers that copies not yet submitted still
+    /// read, once meshing threads upload between the two.)
+    fn prepare_draws<'a>(
+        &mut self,
+        frame: &FrameParams,
+        size: (u32, u32),
+        meshes: impl IntoIterator<Item = (&'a GpuMesh, ChunkDraw)>,
+    ) {
         self.ensure_depth(size);
         let aspect = size.0 as f32 / size.1.max(1) as f32;
         // Camera-relative: the eye is the origin of the render space; the
@@ -972,7 +1033,7 @@ impl PlanetRenderer {
         // own copy of the descriptor state, about 800 MB per frame of
         // 8,000 chunks that was never given back.
         pass.set_bind_group(1, &self.chunk_group, &[]);
-        let pages = self.arena.lock();
+        let pages = self.uploader.arena.lock();
         let mut calls = 0;
         for draws in &self.page_draws {
             let page = pages.page(draws.page);
@@ -1033,7 +1094,7 @@ impl PlanetRenderer {
         }
         // The uploads go in the frame's submission, ahead of its draws.
         let copies = self.take_uploads();
-        self.prepare(frame, size, meshes);
+        self.prepare_draws(frame, size, meshes);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         let mut draw_calls = {
             let mut pass = self.terrain_pass(&mut encoder, target);
@@ -1069,7 +1130,7 @@ impl PlanetRenderer {
     /// Bytes of GPU buffers held for chunk meshes (pages, used or not).
     #[must_use]
     pub fn mesh_buffer_bytes(&self) -> u64 {
-        self.arena.lock().capacity_bytes()
+        self.uploader.arena.lock().capacity_bytes()
     }
 
     fn ensure_depth(&mut self, size: (u32, u32)) {

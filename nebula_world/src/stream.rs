@@ -160,6 +160,19 @@ pub struct LoadedChunk<H> {
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
+    /// `mesh` of chunk `key` uploaded with `upload`, keeping the CPU copy
+    /// if `keep_cpu`.
+    fn uploaded(
+        key: ChunkKey,
+        mesh: RenderMesh,
+        upload: impl FnOnce(ChunkKey, &RenderMesh) -> H,
+        keep_cpu: bool,
+    ) -> Self {
+        let handle = upload(key, &mesh);
+        let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
+        Self { handle, surface_triangles, skirt_triangles, cpu: keep_cpu.then_some(mesh) }
+    }
+
     fn held(&self) -> Held {
         let renderer_bytes = self.handle.bytes();
         Held { chunks: 1, bytes: renderer_bytes + self.cpu.as_ref().map_or(0, RenderMesh::bytes), renderer_bytes }
@@ -584,7 +597,7 @@ impl PartialOrd for Job {
 }
 
 /// The queue workers take jobs from, and the chunks they hold.
-struct JobState<S> {
+struct JobState<S, H> {
     queue: BinaryHeap<Job>,
     /// Taken by a worker and not collected yet (running, or finished and
     /// waiting in the channel), with the tier they were taken at.
@@ -598,17 +611,42 @@ struct JobState<S> {
     /// in their drop), and handing them to a thread of normal priority
     /// woke it in the middle of the frame.
     spent: Vec<RenderMesh>,
+    /// Uploads each mesh on the worker that made it, if set
+    /// ([`Streamer::set_uploader`]), keeping a CPU copy when `keep_cpu`.
+    uploader: Option<Uploader<H>>,
+    keep_cpu: bool,
 }
 
-struct MeshResult {
+struct MeshResult<H> {
     key: ChunkKey,
     /// The voxel generation the mesh was made from.
     generation: u64,
     /// The mesh, or why there is none (an error, or a panic in the voxel
     /// source or the mesher, as text).
-    result: Result<RenderMesh, String>,
+    result: Result<Made<H>, String>,
     millis: f64,
 }
+
+/// A finished mesh: to be uploaded by the frame thread, or uploaded
+/// already by the worker that made it ([`Streamer::set_uploader`]).
+enum Made<H> {
+    Mesh(RenderMesh),
+    Uploaded(LoadedChunk<H>),
+}
+
+impl<H: MeshHandle> Made<H> {
+    /// Bytes the frame thread has to upload.
+    fn upload_bytes(&self) -> u64 {
+        match self {
+            Made::Mesh(mesh) => mesh.bytes(),
+            Made::Uploaded(_) => 0,
+        }
+    }
+}
+
+/// Makes a renderer's handle for a finished mesh on the meshing thread
+/// that made it ([`Streamer::set_uploader`]).
+pub type Uploader<H> = Arc<dyn Fn(ChunkKey, &RenderMesh) -> H + Send + Sync>;
 
 /// A chunk whose meshing failed: it is asked for again after a wait that
 /// doubles with each failure, and its stand-in is drawn meanwhile.
@@ -635,23 +673,23 @@ pub struct MeshFailure {
 
 /// Meshing jobs: the shared priority queue, the workers on a thread pool of
 /// their own and the channel finished meshes come back on.
-struct Meshing<S> {
+struct Meshing<S, H> {
     /// Meshing's own threads: work the frame thread hands to rayon's global
     /// pool must never queue behind a worker that runs until the job queue
     /// is empty.
     pool: Arc<rayon::ThreadPool>,
-    state: Arc<Mutex<JobState<S>>>,
+    state: Arc<Mutex<JobState<S, H>>>,
     workers: Arc<AtomicUsize>,
     max_workers: usize,
     /// Bounded: a worker waits once [`MAX_UPLOADS_PER_FRAME`] results are
     /// waiting, so slow frames never pile meshes up in memory.
-    sender: SyncSender<MeshResult>,
+    sender: SyncSender<MeshResult<H>>,
     /// In a mutex only so that a streamer can be shared (`Sync`), as ECS
     /// resources must be; only `update` takes it.
-    receiver: Mutex<Receiver<MeshResult>>,
+    receiver: Mutex<Receiver<MeshResult<H>>>,
 }
 
-impl<S> Meshing<S> {
+impl<S, H> Meshing<S, H> {
     /// Jobs queued or running, of the view and prefetching.
     fn pending(&self) -> usize {
         self.state.lock().map_or(0, |s| s.queue.len() + s.running.len())
@@ -814,7 +852,7 @@ pub struct Streamer<S, H> {
     /// How many times the voxels were replaced by edited ones.
     generation: u64,
     tree: LodTree,
-    meshing: Meshing<S>,
+    meshing: Meshing<S, H>,
     /// The meshes held and their budget.
     pub cache: MeshCache<H>,
     draw: DrawList,
@@ -853,7 +891,7 @@ pub struct Streamer<S, H> {
     /// waits until it does not.
     view_busy: bool,
     /// Finished meshes collected from the workers, not uploaded yet.
-    finished: std::collections::VecDeque<MeshResult>,
+    finished: std::collections::VecDeque<MeshResult<H>>,
     /// First failures not taken by the game yet.
     failures: Vec<MeshFailure>,
     /// Meshes uploaded this frame and not kept, freed by a meshing worker
@@ -918,6 +956,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     running: HashMap::default(),
                     voxels: None,
                     spent: Vec::new(),
+                    uploader: None,
+                    keep_cpu: false,
                 })),
                 workers: Arc::default(),
                 max_workers: threads,
@@ -988,17 +1028,35 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     )
                 }))
                 .map_err(|panic| StreamError::Panicked { key, message: panic_text(&*panic) })??;
-                let done = MeshResult { key, generation: 0, result: Ok(mesh.render_mesh()), millis: 0.0 };
+                let done = MeshResult { key, generation: 0, result: Ok(Made::Mesh(mesh.render_mesh())), millis: 0.0 };
                 self.store(done, upload);
             }
         }
         Ok(())
     }
 
+    /// Uploads each finished mesh on the meshing thread that made it with
+    /// `uploader` (`Some`), instead of on the frame thread in
+    /// [`Streamer::update`] with its mesh maker (`None`, the default): the
+    /// frame thread then copies no mesh bytes (the land flight spent about
+    /// 0.9 ms of its 2.8 ms step doing so). The uploader must be callable
+    /// from any thread (a wgpu renderer's is:
+    /// `nebula_render::PlanetRenderer::uploader`) and its handles may be
+    /// dropped on any thread. Jobs already finished keep the way they were
+    /// made.
+    pub fn set_uploader(&mut self, uploader: Option<Uploader<H>>) {
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.uploader = uploader;
+        }
+    }
+
     /// Keep a CPU copy of every mesh (for checks that ray-cast what is
     /// drawn); counted in the byte budget.
     pub fn keep_cpu_meshes(&mut self, keep: bool) {
         self.cache.keep_cpu = keep;
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.keep_cpu = keep;
+        }
     }
 
     /// Changes what is drawn (see [`DrawOptions`]), from the next update.
@@ -1427,7 +1485,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// it is reported once, asked for again after a wait that doubles each
     /// time, and what stands in for it stays drawn meanwhile. Returns
     /// whether it failed.
-    fn store(&mut self, done: MeshResult, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
+    fn store(&mut self, done: MeshResult<H>, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
         let key = done.key;
         let column = key.column();
         if let Some(wanted) = self.cache.required.remove(&key)
@@ -1451,15 +1509,17 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
         };
         self.failed.remove(&key);
-        let handle = upload(key, &mesh);
-        let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
-        let cpu = if self.cache.keep_cpu {
-            Some(mesh)
-        } else {
-            self.spent.push(mesh);
-            None
+        let loaded = match mesh {
+            Made::Uploaded(loaded) => loaded,
+            Made::Mesh(mesh) => {
+                let mut loaded = LoadedChunk::uploaded(key, mesh, |key, mesh| upload(key, mesh), true);
+                if !self.cache.keep_cpu {
+                    // Freed by a meshing worker (`JobState::spent`).
+                    self.spent.extend(loaded.cpu.take());
+                }
+                loaded
+            }
         };
-        let loaded = LoadedChunk { handle, surface_triangles, skirt_triangles, cpu };
         let (voxels, tree, frame, view) = (&*self.voxels, &self.tree, self.frame, self.view);
         let (_, entry) =
             self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
@@ -1509,7 +1569,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let mut results = Vec::new();
         let mut bytes = 0u64;
         while let Some(done) = self.finished.front() {
-            let size = done.result.as_ref().map_or(0, RenderMesh::bytes);
+            let size = done.result.as_ref().map_or(0, Made::upload_bytes);
             if !results.is_empty() && bytes + size > self.cache.max_upload_bytes {
                 break;
             }
@@ -1856,11 +1916,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         let voxels = s.voxels.clone()?;
                         let job = s.queue.pop()?;
                         s.running.insert(job.key, job.tier);
-                        Some((job, voxels))
+                        Some((job, voxels, s.uploader.clone(), s.keep_cpu))
                     });
                     // Freed here, outside the lock.
                     drop(spent);
-                    let Some((job, (voxels, generation))) = job else { break };
+                    let Some((job, (voxels, generation), uploader, keep_cpu)) = job else { break };
                     let start = Instant::now();
                     // A panic in the voxel source (a game's own) or the
                     // mesher fails this chunk, not the game.
@@ -1881,6 +1941,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         // The buffer may be half written: start afresh.
                         BUFFER.with(|buffer| *buffer.borrow_mut() = ChunkMeshBuffer::new());
                         Err(format!("panicked: {}", panic_text(&*panic)))
+                    });
+                    // Uploaded here when the game gave an uploader: the
+                    // frame thread then copies no mesh bytes.
+                    let result = result.map(|mesh| match &uploader {
+                        Some(upload) => Made::Uploaded(LoadedChunk::uploaded(job.key, mesh, &**upload, keep_cpu)),
+                        None => Made::Mesh(mesh),
                     });
                     let millis = start.elapsed().as_secs_f64() * 1e3;
                     // It stays in the running set until collected, so no

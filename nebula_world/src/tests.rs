@@ -1230,6 +1230,72 @@ mod streaming {
         println!("uploads: at most {fullest} bytes a frame of {budget}, settled after {frames} frames");
     }
 
+    #[test]
+    fn meshing_threads_upload_what_they_make_when_given_an_uploader() {
+        // With an uploader every mesh after the face roots is uploaded on
+        // a meshing thread and the frame's mesh maker is never called; the
+        // view settles to the same triangles as with uploads on the frame
+        // thread, and the meshes it frees are freed alike.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+        let up = DVec3::new(0.5, 0.5, 0.7).normalize();
+        let position = planet.surface_point(up) + up * 40.0;
+        let camera = Camera { position, forward: up.any_orthonormal_vector() - up * 0.2, up, aspect: 1.6 };
+        let lod = LodSettings { screen_height_px: 400.0, ..LodSettings::default() };
+        let settle = |on_workers: bool| {
+            let live = Arc::new(AtomicUsize::new(0));
+            let made = |live: &Arc<AtomicUsize>, mesh: &nebula_meshing::RenderMesh| {
+                live.fetch_add(1, Ordering::SeqCst);
+                Counted { bytes: mesh.bytes(), live: live.clone() }
+            };
+            let frame_uploads = AtomicUsize::new(0);
+            let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| {
+                frame_uploads.fetch_add(1, Ordering::SeqCst);
+                made(&live, mesh)
+            };
+            let mut streamer = Streamer::new(planet.clone(), lod, camera, 2, &mut upload).unwrap();
+            let roots = frame_uploads.swap(0, Ordering::SeqCst);
+            let on_mesh_threads = Arc::new(AtomicUsize::new(0));
+            if on_workers {
+                let (live, on_mesh_threads) = (live.clone(), on_mesh_threads.clone());
+                streamer.set_uploader(Some(Arc::new(move |_key, mesh| {
+                    let name = std::thread::current().name().unwrap_or_default().to_owned();
+                    assert!(name.starts_with("nebula-mesh"), "uploaded on {name}");
+                    on_mesh_threads.fetch_add(1, Ordering::SeqCst);
+                    made(&live, mesh)
+                })));
+            }
+            for frames in 0.. {
+                streamer.update(camera, &mut upload);
+                assert_eq!(streamer.draw_list().holes, 0);
+                if streamer.settled() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                assert!(frames < 20_000, "did not settle");
+            }
+            let held = streamer.cache.chunks();
+            let triangles = streamer.figures().triangles;
+            let counts = (frame_uploads.load(Ordering::SeqCst), on_mesh_threads.load(Ordering::SeqCst));
+            drop(streamer);
+            // A worker still on a prefetch job drops what it made when it
+            // finds the streamer gone.
+            let start = std::time::Instant::now();
+            while live.load(Ordering::SeqCst) > 0 && start.elapsed().as_secs() < 5 {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            (roots, counts, held, triangles, live.load(Ordering::SeqCst))
+        };
+        let (roots, (frame, workers), held, triangles, left) = settle(true);
+        println!("uploader: {roots} roots, then {frame} uploads on the frame thread and {workers} on meshing threads");
+        assert!(roots >= 6);
+        assert_eq!(frame, 0, "the frame thread uploaded meshes");
+        assert!(workers >= held - roots, "{workers} uploads for {held} chunks held");
+        assert_eq!(left, 0, "handles outlived the streamer");
+        let (_, (frame, workers), _, control, _) = settle(false);
+        assert!(frame > 0 && workers == 0, "without an uploader the frame thread uploads");
+        assert_eq!(triangles, control, "a different view with the uploader");
+    }
+
     /// The niceness of each thread of this process named `prefix…`, and
     /// of the calling thread (Linux: field 19 of `/proc/self/task/*/stat`).
     #[cfg(target_os = "linux")]
