@@ -237,8 +237,8 @@ struct CachedColumn<H> {
     held: Held,
     /// Frame it was last drawn or wanted in.
     last_used: u64,
-    /// Its outermost wall planes, for [`WallPlanes::back_sides`].
-    walls: WallPlanes,
+    /// Its wall planes and neighbours ([`ColumnSides`]).
+    sides: ColumnSides,
 }
 
 impl<H: MeshHandle> CachedColumn<H> {
@@ -258,7 +258,7 @@ impl<H: MeshHandle> CachedColumn<H> {
             chunks: LayerMeshes::default(),
             held: Held::default(),
             last_used: frame,
-            walls: WallPlanes::of(voxels.layout(), column),
+            sides: ColumnSides::of(voxels.layout(), column),
         }
     }
 
@@ -1613,8 +1613,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let eye = self.eye.position;
         // Sets reused from frame to frame: allocating and growing them anew
         // each frame cost page faults and rehashing.
-        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen } =
+        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen, mut climbs } =
             std::mem::take(&mut self.scratch);
+        climbs.clear();
         ancestors.clear();
         hidden_tops.clear();
         drawn_set.clear();
@@ -1674,11 +1675,21 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             } else {
                 return (leaf, Hidden::No);
             };
-            let mut top = leaf;
-            while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && (behind(up) || sea_hides(up, true))) {
-                top = up;
-            }
-            (top, hidden)
+            // Siblings, hidden alike, climb from the same parent: once a
+            // frame for all of them.
+            let Some(first) = parent(leaf).filter(|_| leaf.lod < max_lod) else { return (leaf, hidden) };
+            let mut hides = |column: ChunkColumn| behind(column) || sea_hides(column, true);
+            let top = *climbs.entry(first).or_insert_with(|| {
+                if !hides(first) {
+                    return None;
+                }
+                let mut top = first;
+                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hides(up)) {
+                    top = up;
+                }
+                Some(top)
+            });
+            (top.unwrap_or(leaf), hidden)
         };
         let (mut behind_horizon, mut under_the_sea) = (0, 0);
         for (leaf, bounds) in tree.visible_leaves_with_bounds() {
@@ -1697,7 +1708,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 // In use even when a stand-in covering it is drawn instead
                 // (a sibling is not ready): never freed while it is a leaf.
                 cached.last_used = frame;
-                let known = (hidden == Hidden::No).then_some((Some(slot), cached.walls, Some(bounds.min_radius)));
+                let known = (hidden == Hidden::No).then_some((Some(slot), cached.sides, Some(bounds.min_radius)));
                 drawn.push((leaf, known));
                 continue;
             }
@@ -1804,13 +1815,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.columns = drawn
             .iter()
             .map(|&(column, known)| {
-                let (slot, walls, low) = known.unwrap_or_else(|| {
-                    let (slot, walls) = match cache.columns.slot_mut(&column) {
+                let (slot, sides, low) = known.unwrap_or_else(|| {
+                    let (slot, sides) = match cache.columns.slot_mut(&column) {
                         Some((slot, cached)) => {
                             cached.last_used = frame;
-                            (Some(slot), cached.walls)
+                            (Some(slot), cached.sides)
                         }
-                        None => (None, WallPlanes::of(layout, column)),
+                        None => (None, ColumnSides::of(layout, column)),
                     };
                     // The tree's cached bounds; a stand-in the tree merged
                     // away asks the source (noise) once here. A coarse chunk
@@ -1821,13 +1832,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         .map(|b| b.min_radius)
                         .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
                         .filter(|_| !behind(column));
-                    (slot, walls, low)
+                    (slot, sides, low)
                 });
                 if let Some(low) = low {
                     min_radius = min_radius.min(low);
                 }
                 self.drawn_slots.push(slot);
-                (column, chunk_draw(voxels, column, set, options, walls.back_sides(eye)))
+                (column, chunk_draw(voxels, column, &sides, set, options, eye))
             })
             .collect();
         self.draw.holes = holes;
@@ -1890,7 +1901,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             queue.extend(jobs.into_iter().filter(|job| !running.contains_key(&job.key)));
             state.voxels = Some((self.voxels.clone(), self.generation));
         }
-        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen };
+        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs };
         self.spawn_workers();
         self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
     }
@@ -2015,10 +2026,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 }
 
-/// A drawn column's slot in the cache, wall planes and lowest surface
-/// radius (`None`: behind the horizon), as the selection's leaf loop finds
-/// them.
-type KnownDraw = (Option<usize>, WallPlanes, Option<f64>);
+/// A drawn column's slot in the cache, sides and lowest surface radius
+/// (`None`: behind the horizon), as the selection's leaf loop finds them.
+type KnownDraw = (Option<usize>, ColumnSides, Option<f64>);
 
 /// The sets [`Streamer::select`] fills each frame.
 #[derive(Default)]
@@ -2031,6 +2041,9 @@ struct SelectScratch {
     drawn_set: HashSet<ChunkColumn>,
     /// Columns whose jobs are listed.
     seen: HashSet<ChunkColumn>,
+    /// The column a hidden leaf under each of these parents is drawn as
+    /// (`None`: the parent is not hidden, the leaf is drawn itself).
+    climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
 }
 
 /// Why a visible leaf is drawn as a coarser ancestor of its own.
@@ -2070,9 +2083,10 @@ fn under_sea<S: VoxelSource + ?Sized>(
 fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,
+    sides: &ColumnSides,
     drawn: &HashSet<ChunkColumn>,
     options: DrawOptions,
-    back_sides: u8,
+    eye: nebula_math::DVec3,
 ) -> ChunkDraw {
     let layout = voxels.layout();
     let max_lod = layout.max_lod();
@@ -2080,14 +2094,13 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
         MorphRule::Own => voxels.geometric_error(column.lod),
         _ => layout.merge_error(column.lod),
     };
-    let hidden_sides = if options.cull_back_sides { back_sides } else { 0 };
+    let hidden_sides = if options.cull_back_sides { sides.back_sides(eye) } else { 0 };
     let mut skirt_depths = [0.0f32; 4];
     if !options.skirts {
         return ChunkDraw { parent_error, skirt_depths, hidden_sides };
     }
-    for (depth, side) in skirt_depths.iter_mut().zip(FaceDirection::HORIZONTAL) {
-        let Some(edge) = side.face_edge() else { continue };
-        let mut across = layout.neighbor(column.chunk(0), edge).column();
+    for (depth, across) in skirt_depths.iter_mut().zip(sides.across) {
+        let Some(mut across) = across else { continue };
         if drawn.contains(&across) {
             continue;
         }
@@ -2108,23 +2121,29 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
     ChunkDraw { parent_error, skirt_depths, hidden_sides }
 }
 
-/// The outermost lattice planes of a column's side walls: the unit
-/// normals (towards growing `i`, resp. `j`) of its first and last `i` line
-/// and of its first and last `j` line, computed once per column.
+/// A column's sides, worked out once per column: the outermost lattice
+/// planes of its side walls (the unit normals, towards growing `i`, resp.
+/// `j`, of its first and last `i` line and of its first and last `j`
+/// line), and the column of the same LOD across each side (as in
+/// `FaceDirection::HORIZONTAL`; finding it across a cube edge was a tenth
+/// of the selection's time, every drawn column every frame).
 #[derive(Clone, Copy, Debug)]
-struct WallPlanes {
+struct ColumnSides {
     i: [nebula_math::DVec3; 2],
     j: [nebula_math::DVec3; 2],
+    across: [Option<ChunkColumn>; 4],
 }
 
-impl WallPlanes {
+impl ColumnSides {
     fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> Self {
         let sphere = layout.sphere();
         let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
         let planes = |along_u: bool, first: i64| {
             [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
         };
-        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size) }
+        let across = FaceDirection::HORIZONTAL
+            .map(|side| side.face_edge().map(|edge| layout.neighbor(column.chunk(0), edge).column()));
+        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size), across }
     }
 
     /// The horizontal sides whose wall faces all look away from `eye` (bit
