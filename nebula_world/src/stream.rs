@@ -615,6 +615,8 @@ struct JobState<S, H> {
     /// ([`Streamer::set_uploader`]), keeping a CPU copy when `keep_cpu`.
     uploader: Option<Uploader<H>>,
     keep_cpu: bool,
+    /// No job is started while set ([`Streamer::set_meshing_paused`]).
+    paused: bool,
 }
 
 struct MeshResult<H> {
@@ -958,6 +960,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     spent: Vec::new(),
                     uploader: None,
                     keep_cpu: false,
+                    paused: false,
                 })),
                 workers: Arc::default(),
                 max_workers: threads,
@@ -1047,6 +1050,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn set_uploader(&mut self, uploader: Option<Uploader<H>>) {
         if let Ok(mut state) = self.meshing.state.lock() {
             state.uploader = uploader;
+        }
+    }
+
+    /// Pauses meshing (`true`): no new job starts, jobs already running
+    /// finish and are collected, and the view is drawn from what is held
+    /// (stand-ins where meshes are missing). For a game's loading screen or
+    /// a frame that needs both cores, and for measuring the frame thread's
+    /// work against a fixed state. `false` starts the workers again.
+    pub fn set_meshing_paused(&mut self, paused: bool) {
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.paused = paused;
+        }
+        if !paused {
+            self.spawn_workers();
         }
     }
 
@@ -1366,10 +1383,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 
     /// Whether prefetching out of view ([`MeshCache::prefetch`]) has
-    /// nothing left to mesh (or no room to).
+    /// nothing left to mesh (or no room to), its set made for the tree as
+    /// it is (right after a view settles, the set is still the one made
+    /// before the tree was refined, and is made anew within a few frames).
     #[must_use]
     pub fn prefetched(&self) -> bool {
-        self.meshing.pending() == self.meshing.view_pending()
+        (!self.cache.prefetch || !self.tree_changed)
+            && self.meshing.pending() == self.meshing.view_pending()
             && (self.prefetch_jobs.is_empty() || !self.cache.room_to_prefetch(self.held))
     }
 
@@ -1613,9 +1633,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let eye = self.eye.position;
         // Sets reused from frame to frame: allocating and growing them anew
         // each frame cost page faults and rehashing.
-        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen, mut climbs } =
+        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen, mut climbs, mut stand_in_climbs } =
             std::mem::take(&mut self.scratch);
         climbs.clear();
+        stand_in_climbs.clear();
         ancestors.clear();
         hidden_tops.clear();
         drawn_set.clear();
@@ -1708,7 +1729,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 // In use even when a stand-in covering it is drawn instead
                 // (a sibling is not ready): never freed while it is a leaf.
                 cached.last_used = frame;
-                let known = (hidden == Hidden::No).then_some((Some(slot), cached.sides, Some(bounds.min_radius)));
+                let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
                 drawn.push((leaf, known));
                 continue;
             }
@@ -1720,20 +1741,29 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 drawn.extend(finer.map(|c| (c, None)));
                 continue;
             }
-            let mut ancestor = leaf;
-            let mut found = false;
-            while ancestor.lod < max_lod {
-                let Some(up) = parent(ancestor) else { break };
-                ancestor = up;
-                if cache.ready(ancestor) {
-                    found = true;
-                    break;
+            // The nearest ready ancestor, and the stand-ins on the way up
+            // wanted: the same for every sibling, so climbed once a frame
+            // from their parent (thousands of leaves wait for meshes at
+            // once in a fast flight).
+            let climb = |wanted: &mut Vec<ChunkColumn>| {
+                let mut ancestor = leaf;
+                while ancestor.lod < max_lod {
+                    let Some(up) = parent(ancestor) else { break };
+                    ancestor = up;
+                    if cache.ready(ancestor) {
+                        return Some(ancestor);
+                    }
+                    if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
+                        wanted.push(ancestor);
+                    }
                 }
-                if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
-                    wanted.push(ancestor);
-                }
-            }
-            if found {
+                None
+            };
+            let found = match parent(leaf).filter(|_| leaf.lod < max_lod) {
+                Some(first) => *stand_in_climbs.entry(first).or_insert_with(|| climb(&mut wanted)),
+                None => climb(&mut wanted),
+            };
+            if let Some(ancestor) = found {
                 max_levels = max_levels.max(ancestor.lod - leaf.lod);
                 ancestors.insert(ancestor);
             } else {
@@ -1800,8 +1830,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             false
         };
-        drawn.retain(|&(c, _)| !covered(c));
-        drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
+        if !ancestors.is_empty() {
+            drawn.retain(|&(c, _)| !covered(c));
+            drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
+        }
         drawn.sort_unstable_by_key(|&(c, _)| c);
         drawn.dedup_by_key(|&mut (c, _)| c);
         self.draw.behind_horizon = behind_horizon;
@@ -1815,6 +1847,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.columns = drawn
             .iter()
             .map(|&(column, known)| {
+                let known = known.and_then(|(slot, low)| {
+                    cache.columns.in_slot(slot, column).map(|cached| (Some(slot), cached.sides, low))
+                });
                 let (slot, sides, low) = known.unwrap_or_else(|| {
                     let (slot, sides) = match cache.columns.slot_mut(&column) {
                         Some((slot, cached)) => {
@@ -1901,7 +1936,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             queue.extend(jobs.into_iter().filter(|job| !running.contains_key(&job.key)));
             state.voxels = Some((self.voxels.clone(), self.generation));
         }
-        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs };
+        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs, stand_in_climbs };
         self.spawn_workers();
         self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
     }
@@ -1912,7 +1947,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn spawn_workers(&self) {
         let meshing = &self.meshing;
         loop {
-            let queued = meshing.state.lock().map_or(0, |s| s.queue.len());
+            let queued = meshing.state.lock().map_or(0, |s| if s.paused { 0 } else { s.queue.len() });
             let workers = meshing.workers.load(Ordering::Acquire);
             if queued == 0 || workers >= meshing.max_workers {
                 return;
@@ -1924,7 +1959,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     let mut spent = Vec::new();
                     let job = state.lock().ok().and_then(|mut s| {
                         spent = std::mem::take(&mut s.spent);
-                        let voxels = s.voxels.clone()?;
+                        let voxels = s.voxels.clone().filter(|_| !s.paused)?;
                         let job = s.queue.pop()?;
                         s.running.insert(job.key, job.tier);
                         Some((job, voxels, s.uploader.clone(), s.keep_cpu))
@@ -2026,9 +2061,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 }
 
-/// A drawn column's slot in the cache, sides and lowest surface radius
-/// (`None`: behind the horizon), as the selection's leaf loop finds them.
-type KnownDraw = (Option<usize>, ColumnSides, Option<f64>);
+/// A drawn column's slot in the cache and lowest surface radius (`None`:
+/// behind the horizon), as the selection's leaf loop finds them. Small on
+/// purpose: the drawn list is sorted and filtered every frame, and moving
+/// the column's sides with it was a fifth of the selection's time.
+type KnownDraw = (usize, Option<f64>);
 
 /// The sets [`Streamer::select`] fills each frame.
 #[derive(Default)]
@@ -2044,6 +2081,9 @@ struct SelectScratch {
     /// The column a hidden leaf under each of these parents is drawn as
     /// (`None`: the parent is not hidden, the leaf is drawn itself).
     climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
+    /// The nearest ready ancestor of the leaves under each of these
+    /// parents that are not ready (`None`: a hole).
+    stand_in_climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
 }
 
 /// Why a visible leaf is drawn as a coarser ancestor of its own.

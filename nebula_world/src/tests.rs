@@ -910,6 +910,45 @@ mod streaming {
     }
 
     #[test]
+    fn a_paused_streamer_starts_no_job_and_settles_once_resumed() {
+        // Paused from its first frame, a small planet's view stays drawn
+        // by the face roots alone (stand-ins, never a hole) with every
+        // job queued and none running; resumed, it settles. Without the
+        // pause the same frames mesh: the check can tell.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(3)).unwrap());
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let eye = planet.surface_point(up) + up * 60.0;
+        let camera = Camera { position: eye, forward: up.any_orthonormal_vector() - up * 0.3, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let frames = |paused: bool| {
+            let mut streamer = Streamer::new(planet.clone(), lod, camera, 2, &mut { upload }).unwrap();
+            streamer.set_meshing_paused(paused);
+            let held = streamer.cache.chunks();
+            for _ in 0..60 {
+                streamer.update(camera, &mut { upload });
+                assert_eq!(streamer.draw_list().holes, 0);
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            (streamer.cache.chunks() - held, streamer)
+        };
+        let (meshed, _) = frames(false);
+        assert!(meshed > 20, "unpaused, only {meshed} chunks were meshed: the check cannot tell");
+        let (meshed, mut streamer) = frames(true);
+        assert_eq!(meshed, 0, "paused, {meshed} chunks were meshed");
+        assert!(streamer.jobs_in_flight() > 0 && streamer.draw_list().stand_ins > 0 && !streamer.settled());
+        streamer.set_meshing_paused(false);
+        for frame in 0.. {
+            streamer.update(camera, &mut { upload });
+            if streamer.settled() {
+                break;
+            }
+            assert!(frame < 20_000, "did not settle once resumed");
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+    }
+
+    #[test]
     fn a_view_held_then_turned_keeps_its_detail() {
         // Random poses over Earth's land, 200 m to 2 km over the ground,
         // looking 5-25 degrees down: after standing still past the cache's

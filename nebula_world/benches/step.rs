@@ -1,0 +1,110 @@
+//! The frame thread's share of a streamed Earth view: one
+//! `Streamer::update` on a settled view 300 m over land at 640×400, its
+//! out-of-view prefetching done and meshing paused (the LOD tree has
+//! nothing to change, so this is the selection: which columns are drawn,
+//! their stand-ins, skirt depths and sides, the job list), against the
+//! baseline of merely walking the tree's visible leaves once in the same
+//! run. Run: `cargo bench -p nebula_world --bench step`.
+//!
+//! `step_waiting`: the frame after the camera jumped 30 km on, every leaf
+//! of the new view waiting for its meshes and drawn through a stand-in or
+//! not at all (meshing is paused, so each iteration sees the same state).
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nebula_lod::{Camera, LodSettings};
+use nebula_math::DVec3;
+use nebula_meshing::RenderMesh;
+use nebula_voxel::{ChunkKey, PlanetSettings, ProceduralPlanet};
+use nebula_world::stream::{MeshHandle, Streamer};
+
+/// A mesh handle that only knows its size, as a renderer's would.
+struct Sized(u64);
+
+impl MeshHandle for Sized {
+    fn bytes(&self) -> u64 {
+        self.0
+    }
+}
+
+fn upload(_key: ChunkKey, mesh: &RenderMesh) -> Sized {
+    Sized(mesh.bytes())
+}
+
+/// 300 m over land, `east_m` east of the first land a fixed sequence of
+/// directions finds, looking east 10° down.
+fn camera(planet: &ProceduralPlanet, east_m: f64) -> Camera {
+    let mut direction = DVec3::new(0.31, 0.62, -0.72).normalize();
+    let mut n = 0.0;
+    while planet.height_at(direction) < 40.0 {
+        n += 1.0;
+        direction = DVec3::new((n * 0.7_f64).sin(), 0.6, (n * 0.7_f64).cos()).normalize();
+    }
+    let east = DVec3::Y.cross(direction).normalize();
+    let up = (direction + east * (east_m / planet.settings().radius)).normalize();
+    let east = DVec3::Y.cross(up).normalize();
+    let forward = (east - up * 10f64.to_radians().tan()).normalize();
+    Camera { position: planet.surface_point(up) + up * 300.0, forward, up, aspect: 1.6 }
+}
+
+fn bench(c: &mut Criterion) {
+    let planet = std::sync::Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).expect("planet"));
+    let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+    let ahead = camera(&planet, 0.0);
+    let mut streamer = Streamer::new(planet.clone(), lod, ahead, 2, &mut upload).expect("streamer");
+    for frame in 0.. {
+        streamer.update(ahead, &mut upload);
+        if streamer.settled() && streamer.prefetched() {
+            break;
+        }
+        assert!(frame < 100_000, "the view did not settle");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let figures = streamer.figures();
+    println!(
+        "settled: {} chunks drawn, {} held ({} MB), {} jobs ({} prefetching)",
+        figures.chunks,
+        figures.chunks_held,
+        figures.held_bytes >> 20,
+        figures.jobs_in_flight,
+        figures.prefetch_jobs
+    );
+
+    // Nothing changes while measuring: no job starts.
+    streamer.set_meshing_paused(true);
+    let mut group = c.benchmark_group("step");
+    group.bench_function("walk_visible_leaves (baseline)", |b| {
+        b.iter(|| {
+            black_box(
+                streamer.tree().visible_leaves_with_bounds().map(|(c, b)| b.min_radius + f64::from(c.x)).sum::<f64>(),
+            )
+        });
+    });
+    group.bench_function("step_settled", |b| b.iter(|| streamer.update(ahead, &mut upload)));
+
+    let figures = streamer.figures();
+    println!(
+        "after: {} chunks drawn, {} held ({} MB), {} jobs ({} prefetching)",
+        figures.chunks,
+        figures.chunks_held,
+        figures.held_bytes >> 20,
+        figures.jobs_in_flight,
+        figures.prefetch_jobs
+    );
+    let behind = camera(&planet, 30_000.0);
+    // The LOD tree refines towards the new view over a few frames (and on
+    // its own thread): let it finish before measuring.
+    for _ in 0..100 {
+        streamer.update(behind, &mut upload);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let figures = streamer.figures();
+    println!("turned: {} chunks drawn, {} stand-ins", figures.chunks, figures.stand_ins);
+    group.bench_function("step_waiting", |b| b.iter(|| streamer.update(behind, &mut upload)));
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
