@@ -9,6 +9,8 @@
 //! `step_waiting`: the frame after the camera jumped 30 km on, every leaf
 //! of the new view waiting for its meshes and drawn through a stand-in or
 //! not at all (meshing is paused, so each iteration sees the same state).
+//! `step_prefetching`: that view settled, with its whole out-of-view
+//! prefetch set still to mesh.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -103,6 +105,20 @@ fn bench(c: &mut Criterion) {
     let figures = streamer.figures();
     println!("turned: {} chunks drawn, {} stand-ins", figures.chunks, figures.stand_ins);
     group.bench_function("step_waiting", |b| b.iter(|| streamer.update(behind, &mut upload)));
+
+    // The new view settled, its out-of-view prefetching not begun.
+    streamer.set_meshing_paused(false);
+    while !streamer.settled() {
+        streamer.update(behind, &mut upload);
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    streamer.set_meshing_paused(true);
+    for _ in 0..20 {
+        streamer.update(behind, &mut upload);
+    }
+    let figures = streamer.figures();
+    println!("prefetching: {} chunks drawn, {} jobs queued", figures.chunks, figures.jobs_in_flight);
+    group.bench_function("step_prefetching", |b| b.iter(|| streamer.update(behind, &mut upload)));
     group.finish();
 }
 

@@ -737,6 +737,13 @@ const MAX_SEA_BED_MEMO: usize = 200_000;
 /// [`PREFETCH_MAX_AGE_FRAMES`] otherwise: a still camera pays nothing.
 pub const PREFETCH_REFRESH_FRAMES: u64 = 8;
 
+/// The most prefetch jobs queued at once, the most urgent first: the
+/// queue is made anew every frame, and handing it every job of a fresh
+/// prefetch set (18,000 over an Earth view) cost a still camera's frame
+/// 2 ms until they were done (`cargo bench -p nebula_world --bench step`).
+/// Two meshing threads take about a quarter of a second to run this many.
+pub const PREFETCH_JOBS_QUEUED: usize = 256;
+
 /// The longest the prefetch set goes unrefreshed (what the horizon and
 /// the sea hide moves with the eye even where the tree does not change).
 pub const PREFETCH_MAX_AGE_FRAMES: u64 = 240;
@@ -1813,6 +1820,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         .map(|key| Job { tier: Tier::Prefetch, priority, key }),
                 );
             }
+            // The most urgent last: meshed jobs come off its end.
+            self.prefetch_jobs.sort_unstable();
             self.keep = keep;
         } else if !cache.prefetch {
             self.prefetch_jobs.clear();
@@ -1917,9 +1926,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let failed = &self.failed;
         self.view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
         if !self.view_busy {
-            self.prefetch_jobs.retain(|job| !cache.holds(job.key));
+            while self.prefetch_jobs.last().is_some_and(|job| cache.holds(job.key)) {
+                self.prefetch_jobs.pop();
+            }
             if cache.room_to_prefetch(self.held) {
-                jobs.extend(self.prefetch_jobs.iter().copied());
+                let next = self.prefetch_jobs.iter().rev().filter(|job| !cache.holds(job.key));
+                jobs.extend(next.take(PREFETCH_JOBS_QUEUED).copied());
             }
         }
         // A chunk that failed waits for its retry; one no longer asked for
