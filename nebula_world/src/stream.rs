@@ -737,12 +737,14 @@ const MAX_SEA_BED_MEMO: usize = 200_000;
 /// [`PREFETCH_MAX_AGE_FRAMES`] otherwise: a still camera pays nothing.
 pub const PREFETCH_REFRESH_FRAMES: u64 = 8;
 
-/// The most prefetch jobs queued at once, the most urgent first: the
-/// queue is made anew every frame, and handing it every job of a fresh
-/// prefetch set (18,000 over an Earth view) cost a still camera's frame
-/// 2 ms until they were done (`cargo bench -p nebula_world --bench step`).
-/// Two meshing threads take about a quarter of a second to run this many.
-pub const PREFETCH_JOBS_QUEUED: usize = 256;
+/// The most jobs queued at once, the most urgent: the queue is made anew
+/// every frame from every job wanted, and handing it all of them cost the
+/// frame thread for each one (a fresh prefetch set of 20,470 jobs cost a
+/// still camera's step 0.9 ms, `cargo bench -p nebula_world --bench
+/// step`; the 1 km/s mountain flight, over 9,000 view jobs waiting, spent
+/// a quarter of its selection handing them over). Two meshing threads
+/// take about half a second to run this many, several frames at any rate.
+pub const MAX_QUEUED_JOBS: usize = 1024;
 
 /// The longest the prefetch set goes unrefreshed (what the horizon and
 /// the sea hide moves with the eye even where the tree does not change).
@@ -1400,7 +1402,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             && (self.prefetch_jobs.is_empty() || !self.cache.room_to_prefetch(self.held))
     }
 
-    /// Meshing jobs queued or running (the view's and prefetching).
+    /// Meshing jobs queued or running (the view's and prefetching); at
+    /// most [`MAX_QUEUED_JOBS`] of those wanted are queued at a time.
     #[must_use]
     pub fn jobs_in_flight(&self) -> usize {
         self.meshing.pending()
@@ -1931,7 +1934,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             if cache.room_to_prefetch(self.held) {
                 let next = self.prefetch_jobs.iter().rev().filter(|job| !cache.holds(job.key));
-                jobs.extend(next.take(PREFETCH_JOBS_QUEUED).copied());
+                jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
             }
         }
         // A chunk that failed waits for its retry; one no longer asked for
@@ -1941,6 +1944,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.failed.retain(|key, _| asked.contains(key));
             let failed = &self.failed;
             jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+        }
+        if jobs.len() > MAX_QUEUED_JOBS {
+            jobs.select_nth_unstable_by(MAX_QUEUED_JOBS, |a, b| b.cmp(a));
+            jobs.truncate(MAX_QUEUED_JOBS);
         }
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
