@@ -740,7 +740,7 @@ pub const PREFETCH_REFRESH_FRAMES: u64 = 8;
 /// The most jobs queued at once, the most urgent: the queue is made anew
 /// every frame from every job wanted, and handing it all of them cost the
 /// frame thread for each one (a fresh prefetch set of 20,470 jobs cost a
-/// still camera's step 0.9 ms, `cargo bench -p nebula_world --bench
+/// still camera's step 0.76 ms, `cargo bench -p nebula_world --bench
 /// step`; the 1 km/s mountain flight, over 9,000 view jobs waiting, spent
 /// a quarter of its selection handing them over). Two meshing threads
 /// take about half a second to run this many, several frames at any rate.
