@@ -1933,6 +1933,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 self.prefetch_jobs.pop();
             }
             if cache.room_to_prefetch(self.held) {
+                // Never more than the queue keeps (below): making 20,000
+                // jobs to keep 1,024 is the cost its cap removes.
                 let next = self.prefetch_jobs.iter().rev().filter(|job| !cache.holds(job.key));
                 jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
             }

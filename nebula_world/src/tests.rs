@@ -797,6 +797,26 @@ mod streaming {
             streamer.figures().triangles
         };
         let before = settle(&mut streamer, 0.0);
+        if prefetch {
+            // Prefetched means done: once it says so, a still camera's
+            // later frames find no meshing work (right after the view
+            // settled it once said so before the prefetch set was made for
+            // the refined tree, and 18,000 jobs came a few frames later).
+            let mut frames = 0;
+            while !streamer.prefetched() {
+                streamer.update(camera(0.0), &mut { upload });
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                frames += 1;
+                assert!(frames < 40_000, "prefetching never ended");
+            }
+            for _ in 0..2 * crate::stream::PREFETCH_REFRESH_FRAMES {
+                streamer.update(camera(0.0), &mut { upload });
+                assert!(
+                    streamer.prefetched() && streamer.jobs_in_flight() == 0,
+                    "prefetching went on after it was done"
+                );
+            }
+        }
         let mut held = 0;
         while held < 400 || (prefetch && !streamer.prefetched()) {
             streamer.update(camera(0.0), &mut { upload });
