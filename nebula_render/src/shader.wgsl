@@ -173,18 +173,26 @@ fn hash(c: vec3<i32>) -> f32 {
 }
 
 // Value noise in [−1, 1] at `p` (in cells), repeating every `period` cells.
+// The corners are wrapped once per axis and hashed one by one: a loop over
+// a local array of corners, each wrapped with two integer remainders per
+// axis, cost a GPU's fragment shader most of its time (an NVIDIA H200 drew
+// a 1920×1080 land view in 77 ms shaded, 19 ms in the LOD colours).
 fn value_noise(p: vec3<f32>, period: i32) -> f32 {
     let cell = floor(p);
     let f = p - cell;
     let u = f * f * (3.0 - 2.0 * f);
-    let c = vec3<i32>(cell);
-    var corners: array<f32, 8>;
-    for (var k = 0; k < 8; k = k + 1) {
-        let o = vec3<i32>(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-        corners[k] = hash(((c + o) % period + period) % period);
-    }
-    let x0 = mix(mix(corners[0], corners[1], u.x), mix(corners[2], corners[3], u.x), u.y);
-    let x1 = mix(mix(corners[4], corners[5], u.x), mix(corners[6], corners[7], u.x), u.y);
+    let a = (vec3<i32>(cell) % period + period) % period;
+    let b = select(a + 1, vec3<i32>(0), a + 1 >= vec3<i32>(period));
+    let x0 = mix(
+        mix(hash(a), hash(vec3<i32>(b.x, a.y, a.z)), u.x),
+        mix(hash(vec3<i32>(a.x, b.y, a.z)), hash(vec3<i32>(b.x, b.y, a.z)), u.x),
+        u.y,
+    );
+    let x1 = mix(
+        mix(hash(vec3<i32>(a.x, a.y, b.z)), hash(vec3<i32>(b.x, a.y, b.z)), u.x),
+        mix(hash(vec3<i32>(a.x, b.y, b.z)), hash(b), u.x),
+        u.y,
+    );
     return mix(x0, x1, u.z) * 2.0 - 1.0;
 }
 
@@ -196,8 +204,17 @@ fn tint(relative: vec3<f32>) -> vec2<f32> {
     let p = relative + frame.tint_origin.xyz;
     let period = frame.tint_origin.w;
     let pixels_per_metre = frame.params.x / max(length(relative), 1.0);
-    let fine = value_noise(p / 16.0, i32(period / 16.0)) * smoothstep(2.0, 8.0, 16.0 * pixels_per_metre);
-    let coarse = value_noise(p / 128.0, i32(period / 128.0)) * smoothstep(2.0, 8.0, 128.0 * pixels_per_metre);
+    // Most of a view is far ground where both fade to nothing: no noise there.
+    let fine_weight = smoothstep(2.0, 8.0, 16.0 * pixels_per_metre);
+    let coarse_weight = smoothstep(2.0, 8.0, 128.0 * pixels_per_metre);
+    var fine = 0.0;
+    if (fine_weight > 0.0) {
+        fine = value_noise(p / 16.0, i32(period / 16.0)) * fine_weight;
+    }
+    var coarse = 0.0;
+    if (coarse_weight > 0.0) {
+        coarse = value_noise(p / 128.0, i32(period / 128.0)) * coarse_weight;
+    }
     return vec2<f32>(0.07 * fine + 0.1 * coarse, coarse);
 }
 
