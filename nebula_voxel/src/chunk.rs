@@ -85,6 +85,18 @@ impl ChunkVoxels {
         }
     }
 
+    /// Whether padded voxel column `(x, z)` is covered above the padded
+    /// chunk, as its source recorded ([`ChunkVoxels::set_covered_above`]);
+    /// `None` where the source recorded nothing or `(x, z)` is outside.
+    #[must_use]
+    pub fn covered_above(&self, (x, z): (u32, u32)) -> Option<bool> {
+        if x >= PADDED_CHUNK_SIZE || z >= PADDED_CHUNK_SIZE {
+            return None;
+        }
+        let n = (x + PADDED_CHUNK_SIZE * z) as usize;
+        self.covered_above.as_ref().map(|words| words[n / 64] & (1 << (n % 64)) != 0)
+    }
+
     /// For each padded voxel column (`x + 34·z`), the lowest padded layer
     /// `y` from which it is open to the sky: every voxel from `y` up, and
     /// everything above the padded chunk, is air. 34 where the column is
@@ -97,10 +109,9 @@ impl ChunkVoxels {
         for z in 0..size {
             for x in 0..size {
                 let n = (x + size * z) as usize;
-                let covered = match &self.covered_above {
-                    Some(words) => words[n / 64] & (1 << (n % 64)) != 0,
-                    None => self.voxels[PaddedChunkShape::linearize([x, size - 1, z]) as usize].is_solid(),
-                };
+                let covered = self
+                    .covered_above((x, z))
+                    .unwrap_or_else(|| self.voxels[PaddedChunkShape::linearize([x, size - 1, z]) as usize].is_solid());
                 if covered {
                     continue;
                 }

@@ -22,7 +22,7 @@ use std::ops::RangeInclusive;
 // not every edit so far.
 use imbl::{HashMap as SharedMap, HashSet as SharedSet};
 
-use nebula_math::{DVec3, FaceEdge};
+use nebula_math::{CubeFace, DVec3, FaceEdge};
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, PADDED_CHUNK_SIZE, PaddedChunkShape,
@@ -31,6 +31,10 @@ use crate::{
 use ndshape::ConstShape;
 
 /// A [`VoxelSource`] with LOD-0 edits on top (see the module docs).
+/// What lies above a chunk counts its edits too
+/// ([`ChunkVoxels::set_covered_above`]): a shaft dug down into a cave lets
+/// the sky light it, a roof built over the ground shades it, and the
+/// chunks under such an edit are among its dirty ones.
 /// Cloning is cheap whatever the edits: they are kept in persistent maps
 /// (`imbl`) that a clone shares, and an edit after a clone copies only
 /// what it changes (a `ProceduralPlanet` base shares its height memo too).
@@ -45,6 +49,12 @@ pub struct EditedSource<S> {
     touched_chunks: SharedSet<ChunkKey>,
     /// Per column (any LOD): lowest and highest LOD-0 layer edited inside.
     touched_columns: SharedMap<ChunkColumn, (i64, i64)>,
+    /// Per LOD-0 voxel column (face, i, j): the highest layer ever edited
+    /// in it, for the sky over the chunks below.
+    edited_tops: SharedMap<(CubeFace, u32, u32), i32>,
+    /// Chunks (any LOD) under an edit that opened or closed a voxel: what
+    /// lies above them, and so their sky light, may differ from the base's.
+    shaded_chunks: SharedSet<ChunkKey>,
 }
 
 impl<S: VoxelSource> From<S> for EditedSource<S> {
@@ -62,6 +72,8 @@ impl<S: VoxelSource> EditedSource<S> {
             fine_by_chunk: SharedMap::new(),
             touched_chunks: SharedSet::new(),
             touched_columns: SharedMap::new(),
+            edited_tops: SharedMap::new(),
+            shaded_chunks: SharedSet::new(),
         }
     }
 
@@ -226,6 +238,10 @@ impl<S: VoxelSource> EditedSource<S> {
             self.fine.insert(at, voxel);
             self.fine_by_chunk.entry(chunk).or_default().insert(at);
         }
+        let top = self.edited_tops.entry((at.face, at.i, at.j)).or_insert(at.h);
+        *top = (*top).max(at.h);
+        // Opening or closing a voxel may change what sees the sky below it.
+        let shades_below = old.is_solid() != voxel.is_solid();
         // The voxel is itself the voxel at every LOD where it is the far
         // corner of its cell (all three indices ≡ −1 mod 2^L).
         let mut cell = at;
@@ -239,7 +255,7 @@ impl<S: VoxelSource> EditedSource<S> {
                 let Some(up) = cell.parent() else { break };
                 cell = up;
             }
-            self.mark_changed(&layout, cell, dirty);
+            self.mark_changed(&layout, cell, shades_below, dirty);
         }
         // Every coarser column over the voxel bounds it too, whether or not
         // its LOD shows it: queries of LOD-0 voxels (picking) may skip a
@@ -255,8 +271,17 @@ impl<S: VoxelSource> EditedSource<S> {
     }
 
     /// Records that the effective value of `cell` changed: its chunk and
-    /// every chunk holding it as padding become dirty.
-    fn mark_changed(&mut self, layout: &ChunkLayout, cell: VoxelCoord, dirty: &mut BTreeSet<ChunkKey>) {
+    /// every chunk holding it as padding become dirty; with
+    /// `shades_below` (it turned solid or air), so do the chunks under
+    /// those, down to the lowest surface their columns may have, whose
+    /// sky light it may change.
+    fn mark_changed(
+        &mut self,
+        layout: &ChunkLayout,
+        cell: VoxelCoord,
+        shades_below: bool,
+        dirty: &mut BTreeSet<ChunkKey>,
+    ) {
         let key = layout.chunk_of(cell);
         let last = CHUNK_SIZE - 1;
         let local_h = cell.h.rem_euclid(CHUNK_SIZE as i32);
@@ -283,8 +308,53 @@ impl<S: VoxelSource> EditedSource<S> {
         *range = (range.0.min(bottom), range.1.max(top));
         for key in keys {
             self.touched_chunks.insert(key);
-            dirty.insert(key);
+            if dirty.insert(key) && shades_below {
+                let lowest = self
+                    .surface_bounds(key.column())
+                    .map_or(key.layer, |bounds| *bounds.chunk_layers(layout, key.lod).start());
+                for below in (lowest..key.layer).map(|layer| ChunkKey { layer, ..key }) {
+                    self.shaded_chunks.insert(below);
+                    dirty.insert(below);
+                }
+            }
         }
+    }
+
+    /// Whether padded voxel column `(x, z)` of `key`, at `(face, i, j)`, is
+    /// covered above the padded chunk once the edits over it count (`base`:
+    /// the base's answer, which stands where no edit lies above). Read voxel
+    /// by voxel from the padded chunk's top up past the highest surface
+    /// the column may have; the base is asked only where it said covered
+    /// and no edit decides (each of its voxels costs a noise evaluation).
+    fn covered_above_edited(&self, key: ChunkKey, (face, i, j): (CubeFace, u32, u32), base: bool) -> bool {
+        let layout = self.layout();
+        let span = layout.voxel_span(key.lod);
+        // LOD `L` shows the LOD-0 voxel in each cell's far corner.
+        let corner = |index: i64| (index + 1) * span - 1;
+        let (fine_i, fine_j) = (corner(i.into()) as u32, corner(j.into()) as u32);
+        let Some(&edited_top) = self.edited_tops.get(&(face, fine_i, fine_j)) else { return base };
+        let first = i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(PADDED_CHUNK_SIZE) - 1;
+        if i64::from(edited_top) < first * span {
+            return base;
+        }
+        let chunk = i64::from(CHUNK_SIZE);
+        let column =
+            ChunkColumn { face, lod: key.lod, x: (i64::from(i) / chunk) as u32, y: (i64::from(j) / chunk) as u32 };
+        let Ok(bounds) = self.surface_bounds(column) else { return base };
+        let last = bounds.max_layer.max(i64::from(edited_top)).div_euclid(span) + 1;
+        (first..=last).any(|h| {
+            let fine = VoxelCoord { face, lod: 0, i: fine_i, j: fine_j, h: corner(h) as i32 };
+            match self.fine.get(&fine) {
+                Some(voxel) => voxel.is_solid(),
+                // Where the base is open above the chunk, it is air here.
+                None => {
+                    base && self
+                        .base
+                        .voxel(VoxelCoord { face, lod: key.lod, i, j, h: h as i32 })
+                        .is_ok_and(|v| v.is_solid())
+                }
+            }
+        })
     }
 
     /// The effective voxel given the base's value for the same coordinates:
@@ -334,22 +404,29 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
 
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
         self.base.fill_chunk(key, out)?;
-        if !self.touched_chunks.contains(&key) {
+        let touched = self.touched_chunks.contains(&key);
+        if !touched && !self.shaded_chunks.contains(&key) {
             return Ok(());
         }
         let per_edge = i64::from(self.layout().voxels_per_edge(key.lod));
         let size = i64::from(CHUNK_SIZE);
-        let voxels = out.as_mut_slice();
         for z in 0..PADDED_CHUNK_SIZE {
             for x in 0..PADDED_CHUNK_SIZE {
                 let (ci, cj) = (i64::from(key.x) * size + i64::from(x) - 1, i64::from(key.y) * size + i64::from(z) - 1);
                 // Corner-gap padding has no voxel of its own: leave the base's.
                 let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
-                for y in 0..PADDED_CHUNK_SIZE {
+                let voxels = out.as_mut_slice();
+                for y in (0..PADDED_CHUNK_SIZE).filter(|_| touched) {
                     let h = i64::from(key.layer) * size + i64::from(y) - 1;
                     let at = VoxelCoord { face, lod: key.lod, i: i as u32, j: j as u32, h: h as i32 };
                     let index = PaddedChunkShape::linearize([x, y, z]) as usize;
                     voxels[index] = self.edited(at, voxels[index]);
+                }
+                // A shaft dug over a cave lets the sky in; a roof built
+                // over the ground keeps it out.
+                if let Some(base) = out.covered_above((x, z)) {
+                    let covered = self.covered_above_edited(key, (face, i as u32, j as u32), base);
+                    out.set_covered_above((x, z), covered);
                 }
             }
         }

@@ -1038,15 +1038,65 @@ fn coarse_cave_voxels_are_mostly_cave_at_lod_0() {
     }
 }
 
+/// Fills `key` from `source` and checks every air voxel of the padded
+/// columns `columns`: one its sky floors call open has only air above it up
+/// to the sky, one they call covered has something solid above it (read
+/// voxel by voxel up past the column's surface bounds, over which nothing
+/// is solid). Returns the voxels said open and covered.
+fn assert_sky_floors_match(
+    source: &impl VoxelSource,
+    key: ChunkKey,
+    columns: impl IntoIterator<Item = (u32, u32)>,
+) -> (usize, usize) {
+    let layout = source.layout();
+    let mut voxels = ChunkVoxels::new(key);
+    source.fill_chunk(key, &mut voxels).unwrap();
+    let floors = voxels.sky_floors();
+    let size = PADDED_CHUNK_SIZE;
+    let per_edge = i64::from(layout.voxels_per_edge(key.lod));
+    let chunk = i64::from(CHUNK_SIZE);
+    let (mut open, mut covered) = (0, 0);
+    for (x, z) in columns {
+        let (ci, cj) = (i64::from(key.x) * chunk + i64::from(x) - 1, i64::from(key.y) * chunk + i64::from(z) - 1);
+        let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
+        let column = ChunkColumn { face, lod: key.lod, x: (i / chunk) as u32, y: (j / chunk) as u32 };
+        let top = source.surface_bounds(column).unwrap().max_layer.div_euclid(layout.voxel_span(key.lod)) + 2;
+        for y in 0..size {
+            if voxels.get([x, y, z]).unwrap().is_solid() {
+                continue;
+            }
+            let said_open = y >= u32::from(floors[(x + size * z) as usize]);
+            let first = i64::from(key.layer) * chunk + i64::from(y) - 1;
+            let sees_sky = (first..=top).all(|h| {
+                !source
+                    .voxel(VoxelCoord { face, lod: key.lod, i: i as u32, j: j as u32, h: h as i32 })
+                    .unwrap()
+                    .is_solid()
+            });
+            assert_eq!(said_open, sees_sky, "{key:?} padded ({x}, {y}, {z})");
+            if said_open { open += 1 } else { covered += 1 }
+        }
+    }
+    (open, covered)
+}
+
+/// The padded column of `at` in its chunk, and those up to `reach` around it.
+fn padded_columns_around(at: VoxelCoord, reach: u32) -> impl Iterator<Item = (u32, u32)> {
+    let (ci, cj) = ((at.i % CHUNK_SIZE) + 1, (at.j % CHUNK_SIZE) + 1);
+    let width = 2 * reach + 1;
+    let last = PADDED_CHUNK_SIZE - 1;
+    (0..width * width).map(move |n| {
+        ((ci + n % width).saturating_sub(reach).min(last), (cj + n / width).saturating_sub(reach).min(last))
+    })
+}
+
 /// Around random Earth caves (a fixed seed), at LODs 0 and 1: a voxel the
 /// chunk's sky floors call open has only air above it up to the sky, and
-/// an air voxel they call covered has something solid above it (read
-/// voxel by voxel up past the highest ground).
+/// an air voxel they call covered has something solid above it.
 #[test]
 fn sky_floors_say_which_air_sees_the_sky() {
     let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
     let layout = planet.layout();
-    let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
     let (mut open, mut covered) = (0, 0);
     // Deep caves, and cave mouths (a column whose heightfield top is cave
     // air): their rims, where a tunnel's top lies just under the ground,
@@ -1068,48 +1118,82 @@ fn sky_floors_say_which_air_sees_the_sky() {
     for cave in cave_voxels(&planet, 6, 44).into_iter().chain(mouths) {
         for lod in [0u8, 1] {
             let at = VoxelCoord { lod, i: cave.i >> lod, j: cave.j >> lod, h: cave.h >> lod, ..cave };
-            let key = layout.chunk_of(at);
-            planet.fill_chunk(key, &mut voxels).unwrap();
-            let floors = voxels.sky_floors();
-            let size = PADDED_CHUNK_SIZE;
-            // Padded column of the cave and a few around it, every air voxel.
-            let (ci, cj) = ((at.i % CHUNK_SIZE) + 1, (at.j % CHUNK_SIZE) + 1);
-            let around = (0..25)
-                .map(|n| ((ci + n % 5).saturating_sub(2).min(size - 1), (cj + n / 5).saturating_sub(2).min(size - 1)));
-            for (x, z) in [(ci.saturating_sub(3), cj), (ci, (cj + 5).min(size - 1))].into_iter().chain(around) {
-                for y in 0..size {
-                    if voxels.get([x, y, z]).unwrap().is_solid() {
-                        continue;
-                    }
-                    let said_open = y >= u32::from(floors[(x + size * z) as usize]);
-                    // Walk up from this voxel in the planet's own voxels.
-                    let (i, j) = (
-                        i64::from(key.x) * i64::from(CHUNK_SIZE) + i64::from(x) - 1,
-                        i64::from(key.y) * i64::from(CHUNK_SIZE) + i64::from(z) - 1,
-                    );
-                    let first = i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(y) - 1;
-                    // Over the highest the ground can be near, nothing is solid.
-                    let span = layout.voxel_span(lod) as f64;
-                    let sample = layout.sphere().direction(
-                        key.face,
-                        (i as f64 + 1.0) * span - 0.5,
-                        (j as f64 + 1.0) * span - 0.5,
-                    );
-                    let top = (planet.height_at(sample) / layout.sphere().layer_height() + 4.0) / span;
-                    let sees_sky = (first..top as i64 + 2).all(|h| {
-                        !planet
-                            .voxel(VoxelCoord { face: key.face, lod, i: i as u32, j: j as u32, h: h as i32 })
-                            .unwrap()
-                            .is_solid()
-                    });
-                    assert_eq!(said_open, sees_sky, "lod {lod} {key:?} padded ({x}, {y}, {z})");
-                    if said_open { open += 1 } else { covered += 1 }
-                }
-            }
+            let (x, z) = ((at.i % CHUNK_SIZE) + 1, (at.j % CHUNK_SIZE) + 1);
+            let last = PADDED_CHUNK_SIZE - 1;
+            let far = [(x.saturating_sub(3), z), (x, (z + 5).min(last))];
+            let (o, c) = assert_sky_floors_match(
+                &planet,
+                layout.chunk_of(at),
+                far.into_iter().chain(padded_columns_around(at, 2)),
+            );
+            open += o;
+            covered += c;
         }
     }
     println!("{open} open and {covered} covered air voxels checked");
     assert!(open > 100 && covered > 100, "{open} / {covered}");
+}
+
+/// Edits change what sees the sky, in the chunks they touch and in those
+/// under them: a shaft dug from a cave up through the ground opens the
+/// cave to the sky; a roof built over open ground covers it. The sky
+/// floors match the edited voxels (LODs 0 and 1), and every chunk of the
+/// columns whose voxels or sky floors changed is among the dirty ones;
+/// some chunks change their sky floors alone (the edit is above them).
+#[test]
+fn sky_floors_follow_edits_over_the_chunk() {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let layout = *planet.layout();
+    let sphere = layout.sphere();
+    let ground = |at: VoxelCoord| {
+        let up = sphere.direction(at.face, f64::from(at.i) + 0.5, f64::from(at.j) + 0.5);
+        (planet.height_at(up) / sphere.layer_height()).ceil() as i32
+    };
+    let (mut opened, mut shaded) = (0, 0);
+    // Caves deeper than a chunk under the ground, so that a shaft reaches
+    // over the cave's chunk and a roof over the ground's.
+    let caves = cave_voxels(&planet, 24, 77).into_iter().filter(|&cave| ground(cave) - cave.h > 40);
+    for (n, cave) in caves.take(6).enumerate() {
+        let mut edited = EditedSource::new(planet.clone());
+        let mut dirty = std::collections::BTreeSet::new();
+        // A 2×2 (LOD 1's far corner dug too) shaft from the cave up past
+        // the ground; or a 4×4 roof 40 voxels over the ground.
+        let (i0, j0) = (cave.i & !1, cave.j & !1);
+        let roof = n % 2 == 1;
+        let width = if roof { 4 } else { 2 };
+        for (di, dj) in (0..width * width).map(|k| (k % width, k / width)) {
+            let column = VoxelCoord { i: i0 + di, j: j0 + dj, ..cave };
+            let top = ground(column) + 2;
+            let (heights, voxel) =
+                if roof { (top + 40..=top + 40, Voxel::STONE) } else { (cave.h + 1..=top, Voxel::AIR) };
+            for h in heights {
+                dirty.extend(edited.set_voxel(VoxelCoord { h, ..column }, voxel).unwrap());
+            }
+        }
+        // What the edit lights or shades: the cave, or the ground's air.
+        let target = if roof { VoxelCoord { h: ground(cave) + 2, ..cave } } else { cave };
+        for lod in [0u8, 1] {
+            let at = VoxelCoord { lod, i: target.i >> lod, j: target.j >> lod, h: target.h >> lod, ..target };
+            let key = layout.chunk_of(at);
+            // Every chunk of the column whose voxels or floors changed is dirty.
+            let bounds = edited.surface_bounds(key.column()).unwrap().chunk_layers(&layout, lod);
+            for layer in bounds {
+                let key = ChunkKey { layer, ..key };
+                let (mut before, mut after) = (ChunkVoxels::new(key), ChunkVoxels::new(key));
+                planet.fill_chunk(key, &mut before).unwrap();
+                edited.fill_chunk(key, &mut after).unwrap();
+                let changed = before.as_slice() != after.as_slice() || before.sky_floors() != after.sky_floors();
+                assert!(!changed || dirty.contains(&key), "{key:?} changed and is not dirty");
+                if before.as_slice() == after.as_slice() && before.sky_floors() != after.sky_floors() {
+                    if roof { shaded += 1 } else { opened += 1 }
+                }
+            }
+            // The floors match the edited voxels around what it lights.
+            assert_sky_floors_match(&edited, key, padded_columns_around(at, 3));
+        }
+    }
+    println!("{opened} chunks opened to the sky and {shaded} shaded by edits over them");
+    assert!(opened > 0 && shaded > 0, "{opened} / {shaded}");
 }
 
 /// The deep cave network is sealed at the LODs whose columns leave its
