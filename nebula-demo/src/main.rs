@@ -100,6 +100,13 @@ struct Args {
     /// Screen-space error threshold in pixels.
     #[arg(long, value_name = "PX", default_value_t = 1.0)]
     sse: f64,
+    /// Also render the shot at this finer screen-space error (e.g. 0.25),
+    /// save it beside the screenshot as NAME-reference.png, and report the
+    /// share of pixels whose surface is off by more than a pixel's worth
+    /// against it (`picture_error`; NAME-error.png shows them red). Both
+    /// are drawn with one sample per pixel
+    #[arg(long, value_name = "PX")]
+    reference_sse: Option<f64>,
     /// Debug view: shaded, lod, skirts, morph, wireframe or chunks.
     #[arg(long, value_name = "VIEW", default_value = "shaded")]
     view: DebugView,
@@ -307,9 +314,14 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    for (name, value) in
-        [("--fov", args.fov), ("--radius", args.radius), ("--voxel-size", args.voxel_size), ("--sse", args.sse)]
-    {
+    let reference_sse = ("--reference-sse", args.reference_sse.unwrap_or(1.0));
+    for (name, value) in [
+        ("--fov", args.fov),
+        ("--radius", args.radius),
+        ("--voxel-size", args.voxel_size),
+        ("--sse", args.sse),
+        reference_sse,
+    ] {
         if !value.is_finite() || value <= 0.0 {
             bail!("{name} must be a positive number, got {value}");
         }
@@ -444,6 +456,7 @@ fn configure(app: &mut PlanetApp, args: &Args) {
 
 fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Result<()> {
     let gpu = GpuContext::headless()?;
+    let voxels = planet.clone();
     let mut app = PlanetApp::with_voxels(planet, shot.lod_settings(), gpu, shot_view(shot)?)?;
     configure(&mut app, args);
     if args.screenshot.is_none() && args.camera_pos.is_none() {
@@ -470,10 +483,44 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         }
         return Ok(());
     }
+    // The picture error compares depths, which one sample per pixel keeps.
+    let measured = args.reference_sse.is_some();
+    if measured {
+        app.renderer_mut().set_multisampling(false);
+    }
     let picture = render_app(&mut app, shot)?;
+    let depth = if measured { app.renderer().read_view_depth()? } else { Vec::new() };
+    drop(app);
     let path = args.screenshot.clone().unwrap_or_else(|| PathBuf::from("nebula.png"));
     write_png(&path, &picture.rgba, picture.size)?;
-    let report = report_json(&picture.figures, &picture.adapter);
+    let mut report = report_json(&picture.figures, &picture.adapter);
+    if let Some(sse_px) = args.reference_sse {
+        // The same view at a finer error, on its own streamer.
+        let reference_shot = Shot { sse_px, ..shot.clone() };
+        let gpu = GpuContext::headless()?;
+        let mut app = PlanetApp::with_voxels(voxels, reference_shot.lod_settings(), gpu, shot_view(&reference_shot)?)?;
+        configure(&mut app, args);
+        app.renderer_mut().set_multisampling(false);
+        let reference = render_app(&mut app, &reference_shot)?;
+        let stem = path.file_stem().unwrap_or_default().display();
+        write_png(&path.with_file_name(format!("{stem}-reference.png")), &reference.rgba, reference.size)?;
+        let reference_depth = app.renderer().read_view_depth()?;
+        let error = nebula_render::picture_error::depth_error(&depth, &reference_depth, picture.size)?;
+        // The shot with its wrong pixels red.
+        let wrong = nebula_render::picture_error::wrong_pixels(&depth, &reference_depth, picture.size)?;
+        let mut marked = picture.rgba.clone();
+        for (pixel, _) in marked.chunks_exact_mut(4).zip(&wrong).filter(|(_, wrong)| **wrong) {
+            pixel.copy_from_slice(&[255, 0, 0, 255]);
+        }
+        write_png(&path.with_file_name(format!("{stem}-error.png")), &marked, picture.size)?;
+        report["picture_error"] = serde_json::json!({
+            "reference_sse": sse_px,
+            "reference_chunks": reference.figures.frame.chunks,
+            "reference_triangles": reference.figures.frame.triangles,
+            "wrong_pixels": error.wrong_pixels,
+            "share": error.share(),
+        });
+    }
     println!("wrote {} ({})", path.display(), report);
     if let Some(report_path) = &args.report {
         std::fs::write(report_path, serde_json::to_string_pretty(&report)?)

@@ -64,12 +64,13 @@
 pub mod arena;
 pub mod context;
 pub mod crack;
+pub mod picture_error;
 pub mod readback;
 mod renderer;
 pub mod sun;
 
 pub use renderer::{
-    COLOR_FORMAT, DEPTH_FORMAT, DebugView, FrameParams, FrameStats, GpuMesh, MeshUploader, PlanetRenderer, RenderError,
-    RendererOptions, SEA_MASK_FORMAT, SMOOTH_SAMPLES, SPACE, WANTED_FEATURES, eye_in_sea, overlay_pass,
+    COLOR_FORMAT, DEPTH_FORMAT, DebugView, FrameParams, FrameStats, GpuMesh, MeshUploader, NEAR_PLANE, PlanetRenderer,
+    RenderError, RendererOptions, SEA_MASK_FORMAT, SMOOTH_SAMPLES, SPACE, WANTED_FEATURES, eye_in_sea, overlay_pass,
     sea_hiding_depth, view_projection, water_extinction,
 };

@@ -1116,6 +1116,37 @@ impl PlanetRenderer {
         self.stats
     }
 
+    /// How far the surface drawn at each pixel of the last frame lies
+    /// along the view axis, metres (row 0 at the top); `f32::INFINITY`
+    /// where nothing was drawn. Reads the frame's depth back and waits.
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`] before any frame, after a multisampled
+    /// one (whose depth is not kept), or when the read-back fails.
+    pub fn read_view_depth(&self) -> Result<Vec<f32>, RenderError> {
+        let unavailable = |why: &str| RenderError::Readback(format!("no depth to read: {why}"));
+        let prepared = self.prepared.ok_or_else(|| unavailable("no frame drawn yet"))?;
+        if prepared.smooth {
+            return Err(unavailable("the frame was multisampled (turn multisampling off)"));
+        }
+        let depth = self.depth.as_ref().ok_or_else(|| unavailable("no frame drawn yet"))?;
+        let bytes = crate::readback::read_texture(
+            &self.device,
+            &self.queue,
+            &depth.texture,
+            depth.size,
+            wgpu::TextureAspect::DepthOnly,
+            4,
+        )?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|d| {
+                let d = f32::from_le_bytes([d[0], d[1], d[2], d[3]]);
+                if d > 0.0 { NEAR_PLANE / d } else { f32::INFINITY }
+            })
+            .collect())
+    }
+
     /// The figures of the last [`Self::render`], its GPU time included
     /// once the GPU has finished it and the device has been polled (a
     /// read-back waits for it; a window's next frame usually finds it).
@@ -1146,7 +1177,10 @@ impl PlanetRenderer {
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
                 format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                // Read back by `read_view_depth`.
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             });
             let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
@@ -1162,7 +1196,7 @@ impl PlanetRenderer {
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&sea_mask) },
             ],
         });
-        self.depth = Some(DepthTarget { _texture: texture, view, _mask: mask, sea_mask, size, sky_group });
+        self.depth = Some(DepthTarget { texture, view, _mask: mask, sea_mask, size, sky_group });
         // Their sky bind group reads the sea mask just replaced.
         self.smooth_targets = None;
     }
@@ -1235,7 +1269,7 @@ struct SmoothTargets {
 /// The terrain pass's depth and sea mask at one size, and the sky pass's
 /// bind group reading both.
 struct DepthTarget {
-    _texture: wgpu::Texture,
+    texture: wgpu::Texture,
     view: wgpu::TextureView,
     _mask: wgpu::Texture,
     sea_mask: wgpu::TextureView,
@@ -1398,14 +1432,18 @@ fn keeping_pass<'a>(
     })
 }
 
+/// The near plane of [`view_projection`], metres.
+pub const NEAR_PLANE: f32 = 0.1;
+
 /// The camera-relative view-projection (eye at the origin): right-handed
 /// look-to with an orthonormalised basis, reverse-Z infinite perspective
-/// (near plane 0.1 m), Y up in NDC.
+/// (near plane [`NEAR_PLANE`]; a depth `d` lies `NEAR_PLANE / d` metres
+/// along the view axis), Y up in NDC.
 #[must_use]
 pub fn view_projection(forward: DVec3, up: DVec3, fov_y_degrees: f32, aspect: f32) -> Mat4 {
     let (forward, _, up) = nebula_math::view_basis(forward, up);
     let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward.as_vec3(), up.as_vec3());
-    glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y_degrees.to_radians(), aspect, 0.1) * view
+    glam::camera::rh::proj::directx::perspective_infinite_reverse(fov_y_degrees.to_radians(), aspect, NEAR_PLANE) * view
 }
 
 #[cfg(test)]

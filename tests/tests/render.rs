@@ -1261,3 +1261,37 @@ fn floating_islands_stream_and_draw_crack_free() {
         assert!(cracks.planet_pixels > 10_000, "{name}: sees too little");
     }
 }
+
+/// The picture-error measure (`nebula_render::picture_error`) on Earth
+/// views 300 m over land from a fixed seed, against a reference at
+/// τ = 0.5: at τ = 1 a small share of pixels is off by more than a pixel's
+/// worth; drawing coarser than τ promises (τ = 4, the "bug") is caught.
+#[test]
+fn the_picture_error_measure_sees_detail_drawn_coarser_than_promised() {
+    if !adapter_or_skip("picture error") {
+        return;
+    }
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let mut rng = Rng(0x91C7);
+    for n in 0..2 {
+        let dir = place_with_ground(&planet, &mut rng, 20.0..400.0);
+        let heading = dir.any_orthonormal_vector().lerp(dir.cross(DVec3::Y), rng.next()).normalize();
+        let (eye, look_at) = pose(&settings, dir, 300.0, heading, rng.range(3.0, 20.0));
+        let depth = |sse_px: f64| {
+            let view = Shot { sse_px, background: None, ..shot(eye, look_at, 60.0) };
+            let mut app = app(&settings, &view, DrawOptions::default());
+            app.renderer_mut().set_multisampling(false);
+            render_app(&mut app, &view).expect("renders");
+            app.renderer().read_view_depth().expect("depth read back")
+        };
+        let reference = depth(0.5);
+        let share = |sse_px| {
+            nebula_render::picture_error::depth_error(&depth(sse_px), &reference, SIZE).expect("same size").share()
+        };
+        let (fine, coarse) = (share(1.0), share(4.0));
+        println!("picture error {n}: {:.3} % at τ = 1, {:.2} % at τ = 4", 100.0 * fine, 100.0 * coarse);
+        assert!(fine < 0.005, "{:.3} % of pixels off at τ = 1", 100.0 * fine);
+        assert!(coarse > 0.02 && coarse > 10.0 * fine, "τ = 4 drew {:.3} %, τ = 1 {:.3} %", 100.0 * coarse, 100.0 * fine);
+    }
+}
