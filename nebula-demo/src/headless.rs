@@ -297,15 +297,40 @@ pub fn settle_and_draw(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow:
 /// # Errors
 /// Read-back failures.
 pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
-    let started = Instant::now();
     let target = Offscreen::new(app.gpu(), shot.size)?;
+    draw_into(app, shot, view, &target, true)
+}
+
+/// [`draw_frame`] into `target` (`shot`'s size); without `read_back` the
+/// picture's pixels are left empty and no cracks are counted, and it waits
+/// for the GPU to finish the frame instead: what a game's frame costs, one
+/// frame at a time.
+///
+/// # Errors
+/// Read-back failures.
+pub fn draw_into(
+    app: &mut PlanetApp,
+    shot: &Shot,
+    view: &View,
+    target: &Offscreen,
+    read_back: bool,
+) -> anyhow::Result<Picture> {
+    let started = Instant::now();
     app.draw(&target.view, shot.size, shot.background, shot.view);
-    let rgba = target.read(app.gpu()).context("reading the image back")?;
-    // The read-back waited for the frame: its GPU time is in.
+    let rgba = if read_back {
+        target.read(app.gpu()).context("reading the image back")?
+    } else {
+        app.gpu()
+            .device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .context("waiting for the frame")?;
+        Vec::new()
+    };
+    // The read-back or the wait waited for the frame: its GPU time is in.
     let render = app.renderer_mut().stats();
     let draw_ms = started.elapsed().as_secs_f64() * 1e3;
     let started = Instant::now();
-    let cracks = match shot.background {
+    let cracks = match shot.background.filter(|_| read_back) {
         Some(background) => nebula_render::crack::count_cracks(
             &rgba,
             shot.size,
@@ -320,7 +345,7 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
         adapter: app.gpu().adapter_name.clone(),
         figures: Figures {
             frame: app.frame_figures(),
-            crack_pixels: shot.background.map(|_| cracks.cracks),
+            crack_pixels: shot.background.filter(|_| read_back).map(|_| cracks.cracks),
             planet_pixels: cracks.planet_pixels,
             cracks,
             draw_ms,
