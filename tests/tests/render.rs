@@ -1292,6 +1292,11 @@ fn the_picture_error_measure_sees_detail_drawn_coarser_than_promised() {
         let (fine, coarse) = (share(1.0), share(4.0));
         println!("picture error {n}: {:.3} % at τ = 1, {:.2} % at τ = 4", 100.0 * fine, 100.0 * coarse);
         assert!(fine < 0.005, "{:.3} % of pixels off at τ = 1", 100.0 * fine);
-        assert!(coarse > 0.02 && coarse > 10.0 * fine, "τ = 4 drew {:.3} %, τ = 1 {:.3} %", 100.0 * coarse, 100.0 * fine);
+        assert!(
+            coarse > 0.02 && coarse > 10.0 * fine,
+            "τ = 4 drew {:.3} %, τ = 1 {:.3} %",
+            100.0 * coarse,
+            100.0 * fine
+        );
     }
 }
