@@ -380,6 +380,9 @@ fn run(args: Args) -> anyhow::Result<()> {
         sun: args.sun,
     };
     shot_view(&shot)?;
+    if args.reference_sse.is_some() && (args.flight.is_some() || !args.headless || args.camera_pos.is_none()) {
+        bail!("--reference-sse compares one headless shot: give it with --headless and --camera-pos, not --flight");
+    }
     if let Some(path) = &args.flight {
         return flight(world.voxels(), &shot, path, &args);
     }

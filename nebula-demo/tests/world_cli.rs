@@ -237,3 +237,24 @@ fn a_sun_out_of_range_is_refused() {
         assert!(stderr.contains(reason), "--sun {sun}: {stderr}");
     }
 }
+
+/// `--reference-sse` is refused where it cannot mean anything, with a
+/// clear message and before any GPU work: not a positive number, with a
+/// flight, without a camera or without `--headless`.
+#[test]
+fn a_reference_sse_is_refused_where_it_means_nothing() {
+    let flight = scratch("reference-flight.json");
+    std::fs::write(&flight, r#"[{"t": 0, "pos": [0, 0, 3000], "look_at": [0, 0, 0]}]"#).expect("flight written");
+    let flight = flight.display().to_string();
+    for (args, wants) in [
+        (vec!["--headless", "--camera-pos", "2500,3200,3600", "--reference-sse", "nan"], "positive number"),
+        (vec!["--headless", "--camera-pos", "2500,3200,3600", "--reference-sse=-1"], "positive number"),
+        (vec!["--headless", "--reference-sse", "0.5"], "--camera-pos"),
+        (vec!["--camera-pos", "2500,3200,3600", "--reference-sse", "0.5"], "--headless"),
+        (vec!["--headless", "--flight", flight.as_str(), "--reference-sse", "0.5"], "not --flight"),
+    ] {
+        let output = run(&strings(&args));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success() && stderr.contains(wants), "{args:?}: {stderr}");
+    }
+}
