@@ -22,7 +22,7 @@ use std::ops::RangeInclusive;
 // not every edit so far.
 use imbl::{HashMap as SharedMap, HashSet as SharedSet};
 
-use nebula_math::{CubeFace, DVec3, FaceEdge};
+use nebula_math::{CubeFace, DVec3};
 
 use crate::{
     CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, LayerView, PADDED_CHUNK_SIZE, PaddedChunkShape,
@@ -55,6 +55,15 @@ pub struct EditedSource<S> {
     /// Chunks (any LOD) under an edit that opened or closed a voxel: what
     /// lies above them, and so their sky light, may differ from the base's.
     shaded_chunks: SharedSet<ChunkKey>,
+}
+
+/// What one batch of edits (a voxel, a sphere, a box) changed.
+#[derive(Default)]
+struct Batch {
+    /// Chunks to re-mesh.
+    dirty: BTreeSet<ChunkKey>,
+    /// Chunks whose chunks below are already among `dirty` (and shaded).
+    shaded_under: HashSet<ChunkKey>,
 }
 
 impl<S: VoxelSource> From<S> for EditedSource<S> {
@@ -115,9 +124,9 @@ impl<S: VoxelSource> EditedSource<S> {
     /// [`VoxelError::VoxelOutOfRange`] for a coordinate off the planet or not
     /// at LOD 0.
     pub fn set_voxel(&mut self, at: VoxelCoord, voxel: Voxel) -> Result<Vec<ChunkKey>, VoxelError> {
-        let mut dirty = BTreeSet::new();
-        self.set_voxel_into(at, voxel, &mut dirty)?;
-        Ok(dirty.into_iter().collect())
+        let mut batch = Batch::default();
+        self.set_voxel_into(at, voxel, &mut batch)?;
+        Ok(batch.dirty.into_iter().collect())
     }
 
     /// Sets every LOD-0 voxel whose centre lies within `radius` metres of
@@ -188,7 +197,7 @@ impl<S: VoxelSource> EditedSource<S> {
         let reach_ij = (reach / layout.sphere().cell_width() * 1.5).ceil() as i64 + 1;
         let reach_h = (reach / voxel_size).ceil() as i64 + 1;
         let per_edge = i64::from(layout.voxels_per_edge(0));
-        let mut dirty = BTreeSet::new();
+        let mut batch = Batch::default();
         let mut seen = HashSet::new();
         for di in -reach_ij..=reach_ij {
             for dj in -reach_ij..=reach_ij {
@@ -202,20 +211,15 @@ impl<S: VoxelSource> EditedSource<S> {
                     let h = layer.floor() as i64 + dh;
                     if inside(direction * sphere.layer_radius(h as f64 + 0.5)) {
                         let at = VoxelCoord { face: f, lod: 0, i: i as u32, j: j as u32, h: h as i32 };
-                        self.set_voxel_into(at, voxel, &mut dirty)?;
+                        self.set_voxel_into(at, voxel, &mut batch)?;
                     }
                 }
             }
         }
-        Ok(dirty.into_iter().collect())
+        Ok(batch.dirty.into_iter().collect())
     }
 
-    fn set_voxel_into(
-        &mut self,
-        at: VoxelCoord,
-        voxel: Voxel,
-        dirty: &mut BTreeSet<ChunkKey>,
-    ) -> Result<(), VoxelError> {
+    fn set_voxel_into(&mut self, at: VoxelCoord, voxel: Voxel, batch: &mut Batch) -> Result<(), VoxelError> {
         if at.lod != 0 {
             return Err(VoxelError::VoxelOutOfRange { at, reason: "edits are made at LOD 0".into() });
         }
@@ -255,7 +259,7 @@ impl<S: VoxelSource> EditedSource<S> {
                 let Some(up) = cell.parent() else { break };
                 cell = up;
             }
-            self.mark_changed(&layout, cell, shades_below, dirty);
+            self.mark_changed(&layout, cell, shades_below, batch);
         }
         // Every coarser column over the voxel bounds it too, whether or not
         // its LOD shows it: queries of LOD-0 voxels (picking) may skip a
@@ -275,32 +279,26 @@ impl<S: VoxelSource> EditedSource<S> {
     /// `shades_below` (it turned solid or air), so do the chunks under
     /// those, down to the lowest surface their columns may have, whose
     /// sky light it may change.
-    fn mark_changed(
-        &mut self,
-        layout: &ChunkLayout,
-        cell: VoxelCoord,
-        shades_below: bool,
-        dirty: &mut BTreeSet<ChunkKey>,
-    ) {
+    fn mark_changed(&mut self, layout: &ChunkLayout, cell: VoxelCoord, shades_below: bool, batch: &mut Batch) {
         let key = layout.chunk_of(cell);
-        let last = CHUNK_SIZE - 1;
-        let local_h = cell.h.rem_euclid(CHUNK_SIZE as i32);
+        // Every chunk holding a voxel next to the cell, diagonals included
+        // (across chunk and cube-face edges), holds the cell in its
+        // padding: the mesher reads the padding's corners for the light at
+        // a chunk's corner edges.
+        let per_edge = i64::from(layout.voxels_per_edge(cell.lod));
         let mut keys = vec![key];
-        for (edge, on_border) in [
-            (FaceEdge::NegU, cell.i.is_multiple_of(CHUNK_SIZE)),
-            (FaceEdge::PosU, cell.i % CHUNK_SIZE == last),
-            (FaceEdge::NegV, cell.j.is_multiple_of(CHUNK_SIZE)),
-            (FaceEdge::PosV, cell.j % CHUNK_SIZE == last),
-        ] {
-            if on_border {
-                keys.push(layout.neighbor(key, edge));
+        for (di, dj) in (0..9).map(|n| (n % 3 - 1, n / 3 - 1)) {
+            let Some((face, i, j)) = cell.face.wrap_cell(i64::from(cell.i) + di, i64::from(cell.j) + dj, per_edge)
+            else {
+                continue;
+            };
+            for dh in -1..=1 {
+                let next = VoxelCoord { face, lod: cell.lod, i: i as u32, j: j as u32, h: cell.h + dh };
+                let holder = layout.chunk_of(next);
+                if !keys.contains(&holder) {
+                    keys.push(holder);
+                }
             }
-        }
-        if local_h == 0 {
-            keys.push(ChunkKey { layer: key.layer - 1, ..key });
-        }
-        if local_h == last as i32 {
-            keys.push(ChunkKey { layer: key.layer + 1, ..key });
         }
         let span = layout.voxel_span(cell.lod);
         let (bottom, top) = (i64::from(cell.h) * span, i64::from(cell.h) * span + span - 1);
@@ -308,13 +306,14 @@ impl<S: VoxelSource> EditedSource<S> {
         *range = (range.0.min(bottom), range.1.max(top));
         for key in keys {
             self.touched_chunks.insert(key);
-            if dirty.insert(key) && shades_below {
+            batch.dirty.insert(key);
+            if shades_below && batch.shaded_under.insert(key) {
                 let lowest = self
                     .surface_bounds(key.column())
                     .map_or(key.layer, |bounds| *bounds.chunk_layers(layout, key.lod).start());
                 for below in (lowest..key.layer).map(|layer| ChunkKey { layer, ..key }) {
                     self.shaded_chunks.insert(below);
-                    dirty.insert(below);
+                    batch.dirty.insert(below);
                 }
             }
         }

@@ -280,6 +280,47 @@ fn edits_show_at_lod_0_survive_refills_and_mark_dirty_chunks() {
     assert!(edited.set_voxel(VoxelCoord { lod: 1, ..at }, Voxel::AIR).is_err());
 }
 
+/// An edit in a chunk's corner column is padding of the chunks across the
+/// corner too (the mesher reads padding corners for the light at a
+/// chunk's corner edges): on a face and across a cube-face edge, every
+/// chunk whose padded region holds the edited voxel is dirty and shows it.
+#[test]
+fn an_edit_at_a_chunk_corner_reaches_the_chunks_across_the_corner() {
+    let planet = ProceduralPlanet::new(PlanetSettings::small(7)).unwrap();
+    let layout = *planet.layout();
+    let last = layout.voxels_per_edge(0) - 1;
+    for (i, j) in [(5 * CHUNK_SIZE + CHUNK_SIZE - 1, 9 * CHUNK_SIZE), (last, 3 * CHUNK_SIZE + CHUNK_SIZE - 1)] {
+        let mut edited = EditedSource::new(planet.clone());
+        let top = column_top(&edited, CubeFace::PosY, 0, i, j);
+        // Low in the chunk's top voxel layer's air: a block on the ground.
+        let at = VoxelCoord { face: CubeFace::PosY, lod: 0, i, j, h: top as i32 };
+        let dirty = edited.set_voxel(at, Voxel::STONE).unwrap();
+        // Every chunk around at the same layer whose padded region holds it.
+        let per_edge = i64::from(layout.voxels_per_edge(0));
+        let mut holders = 0;
+        for key in dirty.iter().filter(|k| k.lod == 0) {
+            let mut voxels = ChunkVoxels::new(*key);
+            edited.fill_chunk(*key, &mut voxels).unwrap();
+            let size = i64::from(CHUNK_SIZE);
+            for (x, z) in
+                (0..PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE).map(|n| (n % PADDED_CHUNK_SIZE, n / PADDED_CHUNK_SIZE))
+            {
+                let (ci, cj) = (i64::from(key.x) * size + i64::from(x) - 1, i64::from(key.y) * size + i64::from(z) - 1);
+                let y = i64::from(at.h) - i64::from(key.layer) * size + 1;
+                if key.face.wrap_cell(ci, cj, per_edge) == Some((at.face, i64::from(i), i64::from(j)))
+                    && (0..i64::from(PADDED_CHUNK_SIZE)).contains(&y)
+                {
+                    assert_eq!(voxels.get([x, y as u32, z]), Some(Voxel::STONE), "{key:?} padded ({x}, {y}, {z})");
+                    holders += 1;
+                }
+            }
+        }
+        // The chunk, the two across its sides and the one across the corner
+        // (on a cube edge, two of them on the neighbour face).
+        assert_eq!(holders, 4, "chunks showing the edit at ({i}, {j})");
+    }
+}
+
 #[test]
 fn a_crater_across_a_face_edge_shows_at_coarse_lods_and_replays() {
     let mut edited = EditedSource::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
