@@ -265,7 +265,8 @@ impl FlightReport {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
                 // The whole frame on the frame thread, one at a time: its
                 // step and its draw, waited for (1000 / frame_ms is the
-                // frame rate where nothing is read back).
+                // frame rate where nothing is read back; with frames
+                // written or crack-checked it includes the read-back).
                 "frame_ms": self.spread(|f| Some(f.step_ms + f.figures.draw_ms)),
                 "step_cpu_ms": self.spread(|f| Some(f.step_cpu_ms)),
                 "lod_ms": self.spread(|f| Some(f.figures.frame.times.lod_ms)),

@@ -380,8 +380,16 @@ fn run(args: Args) -> anyhow::Result<()> {
         sun: args.sun,
     };
     shot_view(&shot)?;
-    if args.reference_sse.is_some() && (args.flight.is_some() || !args.headless || args.camera_pos.is_none()) {
-        bail!("--reference-sse compares one headless shot: give it with --headless and --camera-pos, not --flight");
+    if let Some(reference) = args.reference_sse {
+        if args.flight.is_some() || !args.headless || args.camera_pos.is_none() {
+            bail!("--reference-sse compares one headless shot: give it with --headless and --camera-pos, not --flight");
+        }
+        if reference >= args.sse {
+            bail!(
+                "--reference-sse ({reference}) must be finer than --sse ({}): a reference draws more detail",
+                args.sse
+            );
+        }
     }
     if let Some(path) = &args.flight {
         return flight(world.voxels(), &shot, path, &args);

@@ -240,7 +240,7 @@ fn a_sun_out_of_range_is_refused() {
 
 /// `--reference-sse` is refused where it cannot mean anything, with a
 /// clear message and before any GPU work: not a positive number, with a
-/// flight, without a camera or without `--headless`.
+/// flight, without a camera or without `--headless`, coarser than the shot.
 #[test]
 fn a_reference_sse_is_refused_where_it_means_nothing() {
     let flight = scratch("reference-flight.json");
@@ -252,6 +252,7 @@ fn a_reference_sse_is_refused_where_it_means_nothing() {
         (vec!["--headless", "--reference-sse", "0.5"], "--camera-pos"),
         (vec!["--camera-pos", "2500,3200,3600", "--reference-sse", "0.5"], "--headless"),
         (vec!["--headless", "--flight", flight.as_str(), "--reference-sse", "0.5"], "not --flight"),
+        (vec!["--headless", "--camera-pos", "2500,3200,3600", "--reference-sse", "2"], "finer than --sse"),
     ] {
         let output = run(&strings(&args));
         let stderr = String::from_utf8_lossy(&output.stderr);

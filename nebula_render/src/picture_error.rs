@@ -14,6 +14,12 @@
 //! angle); a missing hill, a silhouette moved by two pixels or a hole is
 //! wrong.
 //!
+//! The sea is drawn by the sky pass over the terrain's depth, not into it:
+//! over the sea the depths compared are the sea bed's, which the streamer
+//! draws coarse where the water hides it (`OpaqueSea`), so views over deep
+//! water count sea-bed differences nobody sees. Measure over land, or with
+//! a background (no sea drawn).
+//!
 //! It measures geometry, what τ bounds, not shading: a step a voxel tall
 //! far away is thinner than a pixel, yet drawn or not it can colour a whole
 //! row of pixels. Measured by colour (every channel within 6 %, same
