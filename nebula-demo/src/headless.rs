@@ -393,6 +393,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
     serde_json::json!({
         "adapter": adapter,
         "frames": figures.frames,
+        "sse_px_drawn": f.threshold_px,
         "first_frame_ms": figures.first_frame_ms,
         "settled_ms": figures.settled_ms,
         "draw_and_read_back_ms": figures.draw_ms,

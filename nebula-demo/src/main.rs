@@ -513,6 +513,17 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         configure(&mut app, args);
         app.renderer_mut().set_multisampling(false);
         let reference = render_app(&mut app, &reference_shot)?;
+        // A tree too large for its node bound refines to a larger τ: the
+        // reference must still be finer than the shot.
+        let drawn = (picture.figures.frame.threshold_px, reference.figures.frame.threshold_px);
+        if drawn.1 >= drawn.0 {
+            bail!(
+                "the reference is drawn at τ = {:.2} px and the shot at {:.2} px: the LOD tree's node bound \
+                 raises both (a narrow lens or a large picture); ask for a larger --sse",
+                drawn.1,
+                drawn.0
+            );
+        }
         let stem = path.file_stem().unwrap_or_default().display();
         write_png(&path.with_file_name(format!("{stem}-reference.png")), &reference.rgba, reference.size)?;
         let reference_depth = app.renderer().read_view_depth()?;
@@ -526,6 +537,7 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         write_png(&path.with_file_name(format!("{stem}-error.png")), &marked, picture.size)?;
         report["picture_error"] = serde_json::json!({
             "reference_sse": sse_px,
+            "reference_sse_drawn": drawn.1,
             "reference_chunks": reference.figures.frame.chunks,
             "reference_triangles": reference.figures.frame.triangles,
             "wrong_pixels": error.wrong_pixels,

@@ -803,6 +803,9 @@ pub struct StageTimes {
 /// What the draw list shows, for reports and HUDs.
 #[derive(Clone, Debug, Default)]
 pub struct StreamFigures {
+    /// The τ the LOD tree refines to, pixels: the one asked, or larger
+    /// where the tree's node bound (`LodSettings::max_nodes`) needs it.
+    pub threshold_px: f64,
     /// Chunks drawn.
     pub chunks: usize,
     /// Triangles drawn.
@@ -1483,6 +1486,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             figures.skirt_triangles_held += chunk.skirt_triangles.iter().sum::<usize>();
             figures.lod_histogram[usize::from(key.lod)] += 1;
         }
+        figures.threshold_px = self.tree.screen_space().threshold_px();
         figures.stand_ins = self.draw.stand_ins;
         figures.behind_horizon = self.draw.behind_horizon;
         figures.under_sea = self.draw.under_sea;
