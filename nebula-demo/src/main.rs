@@ -528,19 +528,13 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         write_png(&path.with_file_name(format!("{stem}-reference.png")), &reference.rgba, reference.size)?;
         let reference_depth = app.renderer().read_view_depth()?;
         let error = nebula_render::picture_error::depth_error(&depth, &reference_depth, picture.size)?;
-        // The shot with its wrong pixels red.
-        let wrong = nebula_render::picture_error::wrong_pixels(&depth, &reference_depth, picture.size)?;
-        let mut marked = picture.rgba.clone();
-        for (pixel, _) in marked.chunks_exact_mut(4).zip(&wrong).filter(|(_, wrong)| **wrong) {
-            pixel.copy_from_slice(&[255, 0, 0, 255]);
-        }
-        write_png(&path.with_file_name(format!("{stem}-error.png")), &marked, picture.size)?;
+        write_png(&path.with_file_name(format!("{stem}-error.png")), &error.marked(&picture.rgba), picture.size)?;
         report["picture_error"] = serde_json::json!({
             "reference_sse": sse_px,
             "reference_sse_drawn": drawn.1,
             "reference_chunks": reference.figures.frame.chunks,
             "reference_triangles": reference.figures.frame.triangles,
-            "wrong_pixels": error.wrong_pixels,
+            "wrong_pixels": error.wrong_pixels(),
             "share": error.share(),
         });
     }

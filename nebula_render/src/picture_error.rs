@@ -38,8 +38,8 @@
 //! test[5] = 150.0; // one pixel's surface half as far again
 //! let error = depth_error(&test, &reference, size)?;
 //! // The edge is left out: 2 of the 4 × 3 pixels are compared.
-//! assert_eq!((error.wrong_pixels, error.pixels), (1, 2));
-//! assert_eq!(depth_error(&reference, &reference, size)?.wrong_pixels, 0);
+//! assert_eq!((error.wrong_pixels(), error.pixels), (1, 2));
+//! assert_eq!(depth_error(&reference, &reference, size)?.wrong_pixels(), 0);
 //! # Ok::<(), nebula_render::picture_error::PictureErrorError>(())
 //! ```
 
@@ -50,19 +50,37 @@ pub const DEPTH_TOLERANCE: f32 = 0.01;
 
 /// The pixels of a picture that differ from a reference by more than a
 /// pixel's worth (see the module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct PictureError {
     /// Pixels compared: all but those on the picture's edge.
     pub pixels: u64,
-    /// Pixels wrong in either picture.
-    pub wrong_pixels: u64,
+    /// Whether each pixel is wrong in either picture, row by row from the
+    /// top (edge pixels never are).
+    pub wrong: Vec<bool>,
 }
 
 impl PictureError {
+    /// How many pixels are wrong.
+    #[must_use]
+    pub fn wrong_pixels(&self) -> u64 {
+        self.wrong.iter().filter(|wrong| **wrong).count() as u64
+    }
+
     /// The share of the picture that is wrong, 0–1.
     #[must_use]
     pub fn share(&self) -> f64 {
-        self.wrong_pixels as f64 / self.pixels.max(1) as f64
+        self.wrong_pixels() as f64 / self.pixels.max(1) as f64
+    }
+
+    /// `rgba` (RGBA8, the compared picture's size) with the wrong pixels
+    /// red, to show where they are.
+    #[must_use]
+    pub fn marked(&self, rgba: &[u8]) -> Vec<u8> {
+        let mut marked = rgba.to_vec();
+        for (pixel, _) in marked.chunks_exact_mut(4).zip(&self.wrong).filter(|(_, wrong)| **wrong) {
+            pixel.copy_from_slice(&[255, 0, 0, 255]);
+        }
+        marked
     }
 }
 
@@ -90,20 +108,6 @@ pub enum PictureErrorError {
 /// [`PictureErrorError::WrongLength`] when a depth list is not one value a
 /// pixel.
 pub fn depth_error(test: &[f32], reference: &[f32], size: (u32, u32)) -> Result<PictureError, PictureErrorError> {
-    let wrong = wrong_pixels(test, reference, size)?;
-    let interior = |side: u32| u64::from(side.saturating_sub(2));
-    Ok(PictureError {
-        pixels: interior(size.0) * interior(size.1),
-        wrong_pixels: wrong.iter().filter(|w| **w).count() as u64,
-    })
-}
-
-/// Which pixels [`depth_error`] counts wrong, row by row from the top (to
-/// show where they are).
-///
-/// # Errors
-/// As [`depth_error`].
-pub fn wrong_pixels(test: &[f32], reference: &[f32], size: (u32, u32)) -> Result<Vec<bool>, PictureErrorError> {
     let (width, height) = size;
     let expected = u64::from(width) * u64::from(height);
     for picture in [test, reference] {
@@ -133,9 +137,11 @@ pub fn wrong_pixels(test: &[f32], reference: &[f32], size: (u32, u32)) -> Result
     // bracket a surface moved across the edge: they are left out.
     let interior =
         |n: usize| (1..w.saturating_sub(1)).contains(&(n % w)) && (1..h.saturating_sub(1)).contains(&(n / w));
-    Ok((0..w * h)
+    let wrong = (0..w * h)
         .map(|n| interior(n) && (!matched(test, reference, n % w, n / w) || !matched(reference, test, n % w, n / w)))
-        .collect())
+        .collect();
+    let inner = |side: u32| u64::from(side.saturating_sub(2));
+    Ok(PictureError { pixels: inner(width) * inner(height), wrong })
 }
 
 #[cfg(test)]
@@ -162,7 +168,7 @@ mod tests {
     fn a_pixel_of_movement_is_right_and_more_is_wrong() {
         let size = (32, 24);
         let reference = square(size, (10, 8), 6, 50.0);
-        let check = |test: &[f32]| depth_error(test, &reference, size).unwrap().wrong_pixels;
+        let check = |test: &[f32]| depth_error(test, &reference, size).unwrap().wrong_pixels();
         assert_eq!(check(&reference), 0);
         assert_eq!(check(&square(size, (11, 9), 6, 50.0)), 0, "a pixel diagonally");
         assert_eq!(check(&square(size, (10, 8), 6, 50.4)), 0, "within 1 %");
@@ -178,7 +184,7 @@ mod tests {
         assert_eq!(check(&square(size, (10, 8), 6, 60.0)), 36, "10 m further");
         assert_eq!(check(&square(size, (10, 8), 6, f32::INFINITY)), 36, "a hole to the sky");
         // Either way round.
-        assert_eq!(depth_error(&reference, &missing, size).unwrap().wrong_pixels, 36);
+        assert_eq!(depth_error(&reference, &missing, size).unwrap().wrong_pixels(), 36);
         let error = depth_error(&missing, &reference, size).unwrap();
         assert!((error.share() - 36.0 / 660.0).abs() < 1e-12);
     }
@@ -193,7 +199,7 @@ mod tests {
             (0..size.0 * size.1).map(|n| 100.0 * 1.1f32.powf((n / size.0) as f32 + shift)).collect()
         };
         let reference = ramp(0.0);
-        let wrong = |shift| depth_error(&ramp(shift), &reference, size).unwrap().wrong_pixels;
+        let wrong = |shift| depth_error(&ramp(shift), &reference, size).unwrap().wrong_pixels();
         assert_eq!(wrong(0.5), 0);
         assert_eq!(wrong(1.0), 0);
         // Every pixel compared: 6 × 38.

@@ -414,12 +414,14 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
                 let (ci, cj) = (i64::from(key.x) * size + i64::from(x) - 1, i64::from(key.y) * size + i64::from(z) - 1);
                 // Corner-gap padding has no voxel of its own: leave the base's.
                 let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
-                let voxels = out.as_mut_slice();
-                for y in (0..PADDED_CHUNK_SIZE).filter(|_| touched) {
-                    let h = i64::from(key.layer) * size + i64::from(y) - 1;
-                    let at = VoxelCoord { face, lod: key.lod, i: i as u32, j: j as u32, h: h as i32 };
-                    let index = PaddedChunkShape::linearize([x, y, z]) as usize;
-                    voxels[index] = self.edited(at, voxels[index]);
+                if touched {
+                    let voxels = out.as_mut_slice();
+                    for y in 0..PADDED_CHUNK_SIZE {
+                        let h = i64::from(key.layer) * size + i64::from(y) - 1;
+                        let at = VoxelCoord { face, lod: key.lod, i: i as u32, j: j as u32, h: h as i32 };
+                        let index = PaddedChunkShape::linearize([x, y, z]) as usize;
+                        voxels[index] = self.edited(at, voxels[index]);
+                    }
                 }
                 // A shaft dug over a cave lets the sky in; a roof built
                 // over the ground keeps it out.
