@@ -60,6 +60,7 @@ mod mesher;
 mod pipeline;
 mod render;
 mod seams;
+pub mod stitch;
 
 pub use error::MeshError;
 pub use mesh::{ChunkMesh, MeshVertex, OutlineEdge};
@@ -73,5 +74,7 @@ pub use render::{
 };
 pub use seams::{constrain_edge_vertices, generate_skirt, skirt_depth};
 
+#[cfg(test)]
+mod stitch_tests;
 #[cfg(test)]
 mod tests;

@@ -54,6 +54,7 @@ use nebula_voxel::{
 
 use crate::MeshError;
 use crate::mesh::{ChunkMesh, VertexSource};
+use crate::stitch::{StitchedSide, padded, plane_cells, solid};
 
 /// Lattice points per axis of a chunk: 0..=32.
 const POINTS: usize = CHUNK_SIZE as usize + 1;
@@ -71,6 +72,19 @@ pub(crate) enum BoundaryVertices {
     /// seam checks fail without the canonical set.
     #[cfg(test)]
     OwnCornersOnly,
+}
+
+/// The parts of a stitched seam ([`crate::stitch`]) a mesher makes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct StitchParts {
+    /// The coarse neighbour's faces in the plane, looking into the chunk.
+    pub mirror_faces: bool,
+    /// The zero-area fans zipping coarse edges to the fine vertices on them.
+    pub zips: bool,
+}
+
+impl StitchParts {
+    pub(crate) const ALL: Self = Self { mirror_faces: true, zips: true };
 }
 
 /// Reusable scratch memory for greedy meshing one chunk after another.
@@ -99,6 +113,12 @@ pub struct ChunkMesher {
     /// Per horizontal side (index as in [`FaceDirection::HORIZONTAL`]):
     /// every lattice point on its plane is a vertex.
     dense_sides: [bool; 4],
+    /// Per horizontal side: `Some(d)` where the neighbour is `d` LODs
+    /// coarser and this chunk stitches the seam (`crate::stitch`).
+    stitch_coarser: [Option<u8>; 4],
+    /// Which parts of a stitch are made: all of them, except where a test
+    /// leaves one out to see its check fail.
+    pub(crate) stitch_parts: StitchParts,
     /// The chunk's [`ChunkVoxels::sky_floors`]: where each padded column
     /// is open to the sky.
     sky_floors: [u8; PADDED_COLUMNS],
@@ -129,6 +149,8 @@ impl ChunkMesher {
             index_b: Vec::new(),
             boundary_vertices: BoundaryVertices::Canonical,
             dense_sides: [false; 4],
+            stitch_coarser: [None; 4],
+            stitch_parts: StitchParts::ALL,
             sky_floors: [0; PADDED_COLUMNS],
         }
     }
@@ -156,7 +178,22 @@ impl ChunkMesher {
         layout: &ChunkLayout,
         dense_sides: &[FaceDirection],
     ) -> Result<ChunkMesh, MeshError> {
+        self.mesh_stitched(voxels, layout, dense_sides, &[])
+    }
+
+    /// [`ChunkMesher::mesh_with_dense_sides`], with the seams of `stitched`
+    /// sides closed in their boundary planes (`crate::stitch`; the padding
+    /// of those sides already prepared for it).
+    pub(crate) fn mesh_stitched(
+        &mut self,
+        voxels: &ChunkVoxels,
+        layout: &ChunkLayout,
+        dense_sides: &[FaceDirection],
+        stitched: &[StitchedSide],
+    ) -> Result<ChunkMesh, MeshError> {
         self.dense_sides = FaceDirection::HORIZONTAL.map(|side| dense_sides.contains(&side));
+        self.stitch_coarser =
+            FaceDirection::HORIZONTAL.map(|side| stitched.iter().find(|s| s.side == side).and_then(|s| s.coarser_by));
         let key = voxels.key();
         let origin = layout.chunk_origin(key)?;
         let mut mesh = ChunkMesh::empty(key, *layout, origin);
@@ -216,6 +253,7 @@ impl ChunkMesher {
             axes.push_boundary_strips(voxels.as_slice(), &is_covered, boundary_layers, group);
             split_by_sky(&axes, group, voxels, &self.sky_floors);
         }
+        self.push_mirror_faces(voxels, &mut groups);
         for (group, face) in groups.iter().zip(faces) {
             for quad in group {
                 for corner in face.quad_corners(quad) {
@@ -246,8 +284,179 @@ impl ChunkMesher {
             mesh.surface_side_ranges[side_of(normal) as usize] = first..mesh.indices.len();
         }
         self.greedy.quads.groups = groups;
+        if result.is_ok() {
+            result = self.zip_coarse_edges(voxels, layout, mesh);
+        }
         mesh.surface_index_count = mesh.indices.len();
         result
+    }
+
+    /// On each side stitched to a coarser neighbour, a face in the boundary
+    /// plane looking into the chunk for every padding cell (the coarse
+    /// neighbour's voxel) that is solid across from the chunk's air: the
+    /// neighbour's side of the seam, at this chunk's resolution.
+    fn push_mirror_faces(&self, voxels: &ChunkVoxels, groups: &mut [Vec<UnorientedQuad>]) {
+        if !self.stitch_parts.mirror_faces {
+            return;
+        }
+        let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
+        for (side, _) in FaceDirection::HORIZONTAL.into_iter().zip(self.stitch_coarser).filter(|(_, d)| d.is_some()) {
+            let mut inward = [0i32; 3];
+            inward[side.axis()] = if side.is_positive() { -1 } else { 1 };
+            let Some(group) = faces.iter().position(|face| face.signed_normal().to_array() == inward) else {
+                continue;
+            };
+            for (height, along) in plane_cells() {
+                let pad = padded(side, true, height, along);
+                if solid(voxels, pad) && !solid(voxels, padded(side, false, height, along)) {
+                    groups[group].push(UnorientedQuad { minimum: pad, width: 1, height: 1 });
+                }
+            }
+        }
+    }
+
+    /// On each side stitched to a coarser neighbour, zips every coarse edge
+    /// of the neighbour lying in the boundary plane (on its lattice lines,
+    /// where its voxels on the two sides differ) to the vertices of this
+    /// chunk strictly inside it: a fan of zero-area triangles from the
+    /// edge's first end, in both windings (which way rounding opens the
+    /// sliver is not known), spliced into the surface ranges of the two
+    /// faces of the plane. On the chunk's own corner lines the neighbour's
+    /// voxels beyond are not at hand, so those edges are zipped wherever a
+    /// vertex lies inside them.
+    fn zip_coarse_edges(
+        &mut self,
+        voxels: &ChunkVoxels,
+        layout: &ChunkLayout,
+        mesh: &mut ChunkMesh,
+    ) -> Result<(), MeshError> {
+        if self.stitch_coarser.iter().all(Option::is_none) || !self.stitch_parts.zips {
+            return Ok(());
+        }
+        let key = mesh.key;
+        let mut extra: [Vec<u32>; 6] = Default::default();
+        let mut chain: Vec<[i32; 3]> = Vec::new();
+        for (side, lod_diff) in FaceDirection::HORIZONTAL.into_iter().zip(self.stitch_coarser) {
+            let Some(lod_diff) = lod_diff else { continue };
+            let step = 1i64 << lod_diff;
+            let along_axis = if side.axis() == 0 { 2 } else { 0 };
+            let along_offset = i64::from(if along_axis == 0 { key.x } else { key.y }) * i64::from(CHUNK_SIZE);
+            let height_offset = i64::from(key.layer) * i64::from(CHUNK_SIZE);
+            let plane = if side.is_positive() { LAST } else { 0 };
+            let local = |along: i64, height: i64| {
+                let mut point = [0i32; 3];
+                point[side.axis()] = plane;
+                point[along_axis] = along as i32;
+                point[1] = height as i32;
+                point
+            };
+            // Solidity of the coarse neighbour's voxel holding fine cell
+            // (along, height) of the plane (local, each in -1..=32).
+            let coarse_solid = |along: i64, height: i64| {
+                solid(voxels, padded(side, true, (height + 1) as u32, (along.clamp(0, 31) + 1) as u32))
+            };
+            let first_line = |offset: i64| (step - offset.rem_euclid(step)) % step;
+            // Coarse lines along the plane (constant height), then across it
+            // (constant along): (fixed coordinate, is_horizontal).
+            let horizontal = (first_line(height_offset)..=i64::from(LAST)).step_by(step as usize).map(|h| (h, true));
+            let vertical = (first_line(along_offset)..=i64::from(LAST)).step_by(step as usize).map(|a| (a, false));
+            for (fixed, is_horizontal) in horizontal.chain(vertical).collect::<Vec<_>>() {
+                let offset = if is_horizontal { along_offset } else { height_offset };
+                // Coarse segments [start, start + step] meeting the chunk's span.
+                let mut start = -((offset).rem_euclid(step));
+                while start < i64::from(LAST) {
+                    let end = start + step;
+                    let point = |t: i64| if is_horizontal { local(t, fixed) } else { local(fixed, t) };
+                    let is_edge = if is_horizontal {
+                        let at = start.max(0);
+                        coarse_solid(at, fixed - 1) != coarse_solid(at, fixed)
+                    } else if fixed == 0 || fixed == i64::from(LAST) {
+                        true
+                    } else {
+                        let at = start.max(0);
+                        coarse_solid(fixed - 1, at) != coarse_solid(fixed, at)
+                    };
+                    chain.clear();
+                    if is_edge {
+                        for t in (start + 1).max(0)..end.min(i64::from(LAST) + 1) {
+                            let p = point(t);
+                            let index = point_index(p);
+                            if (0..6).any(|s| self.vertex_slot[index * 6 + s].0 == self.stamp) {
+                                chain.push(p);
+                            }
+                        }
+                    }
+                    if !chain.is_empty() {
+                        let material = (start.max(0)..end.min(i64::from(LAST)))
+                            .find_map(|t| {
+                                let (a, h) = if is_horizontal { (t, fixed) } else { (fixed, t) };
+                                [(a, h), (a, h - 1)].into_iter().find_map(|(a, h)| {
+                                    voxels
+                                        .get(padded(
+                                            side,
+                                            true,
+                                            (h + 1).clamp(0, 33) as u32,
+                                            (a.clamp(0, 31) + 1) as u32,
+                                        ))
+                                        .filter(|v| v.is_solid())
+                                })
+                            })
+                            .map_or(0, |v| v.material());
+                        for (facing, forward) in [(side, true), (side.opposite(), false)] {
+                            let first = self.any_vertex(point(start), facing, material, voxels, layout, mesh)?;
+                            let mut previous = self.any_vertex(chain[0], facing, material, voxels, layout, mesh)?;
+                            let next_points: Vec<[i32; 3]> = chain[1..].iter().copied().chain([point(end)]).collect();
+                            for next in next_points {
+                                let next = self.any_vertex(next, facing, material, voxels, layout, mesh)?;
+                                extra[facing as usize].extend(if forward {
+                                    [first, previous, next]
+                                } else {
+                                    [first, next, previous]
+                                });
+                                previous = next;
+                            }
+                        }
+                    }
+                    start = end;
+                }
+            }
+        }
+        // Splice the zips into their faces' ranges (ranges stay in order).
+        let old = std::mem::take(&mut mesh.indices);
+        let order = RIGHT_HANDED_Y_UP_CONFIG.faces.map(|face| side_of(face.signed_normal().to_array()));
+        for side in order {
+            let range = mesh.surface_side_ranges[side as usize].clone();
+            let start = mesh.indices.len();
+            mesh.indices.extend_from_slice(&old[range]);
+            mesh.indices.extend_from_slice(&extra[side as usize]);
+            mesh.surface_side_ranges[side as usize] = start..mesh.indices.len();
+        }
+        Ok(())
+    }
+
+    /// The vertex at lattice point `local` looking towards `side`, which
+    /// may lie outside the chunk (the far end of a coarse edge longer than
+    /// the chunk): made there from the same canonical position.
+    fn any_vertex(
+        &mut self,
+        local: [i32; 3],
+        side: FaceDirection,
+        material: u8,
+        voxels: &ChunkVoxels,
+        layout: &ChunkLayout,
+        mesh: &mut ChunkMesh,
+    ) -> Result<u32, MeshError> {
+        if local.iter().all(|&c| (0..=LAST).contains(&c)) {
+            return self.vertex(local, side, material, voxels, layout, mesh);
+        }
+        let key = mesh.key;
+        let sphere = layout.sphere();
+        let point = layout.column_point(key, i64::from(local[0]), i64::from(local[2]))?;
+        let span = layout.voxel_span(key.lod);
+        let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
+        let world = sphere.position_on_column(sphere.column_direction(point), layer as i32);
+        let normal = self.normal(key, layout, local, side, world);
+        Ok(mesh.push_vertex(world, world, normal, (material, 0), 0, VertexSource::Surface { local, side }))
     }
 
     /// Triangulates one greedy quad with every lattice vertex on its edges.

@@ -6,10 +6,12 @@ use nebula_voxel::{ChunkKey, ChunkVoxels, VoxelSource};
 use rayon::prelude::*;
 
 use crate::mesh::ChunkMesh;
+use crate::stitch::{StitchedSide, stitch_padding};
 use crate::{ChunkMesher, MeshError, constrain_edge_vertices, generate_skirt, skirt_depth};
 
 /// Which seam passes run. Constraining and skirts are on by default;
-/// switching them off is for measuring what they fix.
+/// switching them off is for measuring what they fix. [`MeshOptions::STITCHED`]
+/// closes seams without skirts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MeshOptions {
     /// Move boundary vertices onto coarser neighbours' edges.
@@ -22,29 +24,42 @@ pub struct MeshOptions {
     /// The mesh then does not depend on its neighbours' LODs: a streamer
     /// swaps chunks without re-meshing their neighbours. Overrides `skirts`.
     pub draw_time_skirts: bool,
+    /// Close each seam with a coarser neighbour by faces lying in the
+    /// shared boundary plane (see [`crate::stitch`]), and leave the faces in
+    /// that plane to the finer chunk on sides with a finer neighbour. Both
+    /// chunks of a seam must be meshed for it (their meshes depend on the
+    /// relation); with `skirts` off no skirt is hung. Drawn without
+    /// geomorphing: the two sides of a seam morph towards different LODs.
+    pub stitch: bool,
 }
 
 impl Default for MeshOptions {
     fn default() -> Self {
-        Self { constrain_edges: true, skirts: true, draw_time_skirts: false }
+        Self { constrain_edges: true, skirts: true, draw_time_skirts: false, stitch: false }
     }
 }
 
 impl MeshOptions {
     /// No constraining, no skirts: the bare surface, for measuring what the
     /// seam passes fix.
-    pub const NO_SEAMS: Self = Self { constrain_edges: false, skirts: false, draw_time_skirts: false };
+    pub const NO_SEAMS: Self = Self { constrain_edges: false, skirts: false, draw_time_skirts: false, stitch: false };
 
     /// Context-free meshes for streaming: no constraining, a skirt on
     /// every side whose depth the renderer chooses per frame.
-    pub const STREAMING: Self = Self { constrain_edges: false, skirts: true, draw_time_skirts: true };
+    pub const STREAMING: Self = Self { constrain_edges: false, skirts: true, draw_time_skirts: true, stitch: false };
+
+    /// Seams closed by stitches in the boundary planes, no skirts: the
+    /// edges towards a coarser neighbour constrained onto its lattice, the
+    /// faces between the two LODs' voxels in the plane, and the coarse
+    /// edges zipped to the fine vertices on them.
+    pub const STITCHED: Self = Self { constrain_edges: true, skirts: false, draw_time_skirts: false, stitch: true };
 }
 
 /// Reusable memory for meshing chunk after chunk on one thread: the padded
 /// voxel array and the mesher's scratch.
 pub struct ChunkMeshBuffer {
     voxels: Option<ChunkVoxels>,
-    mesher: ChunkMesher,
+    pub(crate) mesher: ChunkMesher,
 }
 
 impl Default for ChunkMeshBuffer {
@@ -87,7 +102,19 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     let voxels = buffer.voxels.get_or_insert_with(|| ChunkVoxels::new(key));
     source.fill_chunk(key, voxels)?;
     let layout = source.layout();
-    let mut mesh = if voxels.has_no_surface() {
+    let stitched: Vec<StitchedSide> = if options.stitch {
+        FaceDirection::HORIZONTAL
+            .into_iter()
+            .map(|side| stitch_padding(source, voxels, side, context.relation(side)))
+            .collect::<Result<Vec<_>, _>>()?
+            .into_iter()
+            .flatten()
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let stitch_faces = stitched.iter().any(|side| side.has_faces(voxels));
+    let mut mesh = if voxels.has_no_surface() && !stitch_faces {
         ChunkMesh::empty(key, *layout, layout.chunk_origin(key)?)
     } else {
         // Sides to another LOD are closed by constraining or by skirts
@@ -102,7 +129,7 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
                 .filter(|&side| context.relation(side) != NeighborLodRelation::Same)
                 .collect()
         };
-        buffer.mesher.mesh_with_dense_sides(voxels, layout, &dense_sides)?
+        buffer.mesher.mesh_stitched(voxels, layout, &dense_sides, &stitched)?
     };
     for side in FaceDirection::HORIZONTAL {
         if let (true, Some(lod_diff)) = (options.constrain_edges, context.coarser_neighbor_diff(side)) {
