@@ -415,6 +415,8 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "under_sea": f.under_sea,
         "lod_histogram": histogram,
         "max_neighbor_lod_diff": f.max_neighbor_lod_diff,
+        "max_drawn_lod_diff": f.max_drawn_lod_diff,
+        "unsettled": f.unsettled,
         "cpu_ms": {
             "lod": f.times.lod_ms,
             "select": f.times.select_ms,

@@ -25,6 +25,7 @@ use nebula_render::context::GpuContext;
 
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, Voxel, VoxelHit, VoxelSource};
+use nebula_world::seams::SeamStrategy;
 use nebula_world::walk::{Body, Orientation, Walker, is_solid, move_body};
 use nebula_world::{Edit, World};
 use winit::application::ApplicationHandler;
@@ -133,6 +134,10 @@ struct Args {
     /// Draw LOD seams without skirts (for debugging: they open).
     #[arg(long)]
     no_skirts: bool,
+    /// How seams between LODs are closed: skirts, constrained or stitched
+    /// (`nebula_world::seams`).
+    #[arg(long, value_name = "STRATEGY", default_value = "skirts")]
+    seams: SeamStrategy,
     /// Antialiasing of the shaded view (four samples per pixel): `auto` is
     /// on with a GPU and off on a CPU adapter such as lavapipe, where it
     /// makes a frame about three times slower.
@@ -462,6 +467,7 @@ fn configure(app: &mut PlanetApp, args: &Args) {
     let mut stream = app.streamer_mut();
     stream.0.set_uploader(uploader);
     stream.0.set_lod_thread(args.lod_thread);
+    stream.0.set_seam_strategy(args.seams);
     stream.0.cache.max_bytes = args.mesh_budget_mb.saturating_mul(1 << 20);
 }
 

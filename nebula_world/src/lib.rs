@@ -59,6 +59,7 @@
 pub mod ecs;
 mod error;
 mod lod_thread;
+pub mod seams;
 mod store;
 pub mod stream;
 pub mod walk;

@@ -83,6 +83,7 @@ use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, LayerView, VoxelSource};
 
 use crate::lod_thread::{LodThread, Outcome};
 use crate::panic_text;
+use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context, side_relations};
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
 /// mesh (the streamer drops the handles of the meshes it frees).
@@ -157,6 +158,9 @@ pub struct LoadedChunk<H> {
     /// ([`Streamer::keep_cpu_meshes`], for checks that ray-cast what is
     /// drawn).
     pub cpu: Option<RenderMesh>,
+    /// The LOD relations across its sides it was made for
+    /// ([`SeamStrategy`]; the same all round for skirts).
+    pub made_for: SideRelations,
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
@@ -170,7 +174,7 @@ impl<H: MeshHandle> LoadedChunk<H> {
     ) -> Self {
         let handle = upload(key, &mesh);
         let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
-        Self { handle, surface_triangles, skirt_triangles, cpu: keep_cpu.then_some(mesh) }
+        Self { handle, surface_triangles, skirt_triangles, cpu: keep_cpu.then_some(mesh), made_for: SAME_ALL_ROUND }
     }
 
     fn held(&self) -> Held {
@@ -562,21 +566,28 @@ impl<H: MeshHandle> MeshCache<H> {
     }
 }
 
-/// Which work a job is: the view's first, then prefetching.
+/// Which work a job is: the view's first, then seams, then prefetching.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Tier {
     /// Out of view, for a later turn ([`MeshCache::prefetch`]).
     Prefetch,
+    /// A chunk drawn with a mesh made for other LODs around it than those
+    /// drawn ([`SeamStrategy`]): its fallback skirts close the seam
+    /// meanwhile.
+    Reseam,
     /// In view (leaves, their stand-ins, edited chunks on screen).
     View,
 }
 
-/// A meshing job: one chunk, with the priority of its column.
+/// A meshing job: one chunk, with the priority of its column, and the
+/// seams to make it for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Job {
     tier: Tier,
     priority: f64,
     key: ChunkKey,
+    seams: SeamStrategy,
+    relations: SideRelations,
 }
 
 impl Eq for Job {}
@@ -621,6 +632,9 @@ struct JobState<S, H> {
 
 struct MeshResult<H> {
     key: ChunkKey,
+    /// The seams it was made for.
+    seams: SeamStrategy,
+    relations: SideRelations,
     /// The voxel generation the mesh was made from.
     generation: u64,
     /// The mesh, or why there is none (an error, or a panic in the voxel
@@ -697,11 +711,11 @@ impl<S, H> Meshing<S, H> {
         self.state.lock().map_or(0, |s| s.queue.len() + s.running.len())
     }
 
-    /// Jobs of the view queued or running.
+    /// Jobs of the view (its seams included) queued or running.
     fn view_pending(&self) -> usize {
         self.state.lock().map_or(0, |s| {
-            s.queue.iter().filter(|job| job.tier == Tier::View).count()
-                + s.running.values().filter(|&&tier| tier == Tier::View).count()
+            s.queue.iter().filter(|job| job.tier != Tier::Prefetch).count()
+                + s.running.values().filter(|&&tier| tier != Tier::Prefetch).count()
         })
     }
 }
@@ -774,6 +788,12 @@ pub struct DrawList {
     /// Leaves in the frustum under the opaque sea ([`OpaqueSea`]), drawn
     /// as their coarsest ancestor under it too.
     pub under_sea: usize,
+    /// Drawn columns whose meshes were made for other LODs around them
+    /// than those drawn ([`SeamStrategy`]; always 0 with skirts): their
+    /// seams are closed by fallback skirts until they are meshed again.
+    pub unsettled: usize,
+    /// Largest LOD difference between drawn columns across a side.
+    pub max_lod_diff: u8,
 }
 
 /// CPU time per stage, milliseconds, for the last frame (meshing: summed
@@ -827,6 +847,11 @@ pub struct StreamFigures {
     pub under_sea: usize,
     /// Largest LOD difference between neighbouring leaves.
     pub max_neighbor_lod_diff: u8,
+    /// Largest LOD difference between drawn columns across a side.
+    pub max_drawn_lod_diff: u8,
+    /// Drawn columns whose seams wait to be meshed for the LODs drawn
+    /// around them ([`DrawList::unsettled`]).
+    pub unsettled: usize,
     /// CPU time per stage.
     pub times: StageTimes,
     /// Meshing jobs queued or running (view and prefetch).
@@ -922,6 +947,8 @@ pub struct Streamer<S, H> {
     /// What the eye can see of the source's layers
     /// ([`VoxelSource::layer_view`]): only those are meshed and drawn.
     view: LayerView,
+    /// How seams between LODs are closed.
+    seams: SeamStrategy,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -1018,6 +1045,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             lod_thread: None,
             lod_frames: (0, 0),
             last_step: 0.0,
+            seams: SeamStrategy::Skirts,
         };
         streamer.set_lod_thread(true);
         streamer.mesh_roots(upload)?;
@@ -1043,7 +1071,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     )
                 }))
                 .map_err(|panic| StreamError::Panicked { key, message: panic_text(&*panic) })??;
-                let done = MeshResult { key, generation: 0, result: Ok(Made::Mesh(mesh.render_mesh())), millis: 0.0 };
+                let done = MeshResult {
+                    key,
+                    seams: self.seams,
+                    relations: SAME_ALL_ROUND,
+                    generation: 0,
+                    result: Ok(Made::Mesh(mesh.render_mesh())),
+                    millis: 0.0,
+                };
                 self.store(done, upload);
             }
         }
@@ -1086,6 +1121,39 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if let Ok(mut state) = self.meshing.state.lock() {
             state.keep_cpu = keep;
         }
+    }
+
+    /// Closes the seams between LODs with `seams` from the next update (see
+    /// [`SeamStrategy`]). Meshes made for other LODs around them than the
+    /// same all round are dropped and made again; the rest serve every
+    /// strategy.
+    pub fn set_seam_strategy(&mut self, seams: SeamStrategy) {
+        if seams == self.seams {
+            return;
+        }
+        self.seams = seams;
+        let keys: Vec<ChunkKey> = self
+            .cache
+            .columns
+            .iter()
+            .flat_map(|(column, cached)| {
+                cached
+                    .chunks
+                    .iter()
+                    .filter(|(_, chunk)| chunk.made_for != SAME_ALL_ROUND)
+                    .map(|(layer, _)| column.chunk(layer))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        for key in keys {
+            self.cache.remove(key);
+        }
+    }
+
+    /// How seams between LODs are closed.
+    #[must_use]
+    pub fn seam_strategy(&self) -> SeamStrategy {
+        self.seams
     }
 
     /// Changes what is drawn (see [`DrawOptions`]), from the next update.
@@ -1442,7 +1510,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn frame_draw(&self, eye: nebula_math::DVec3) -> FrameDraw {
         // The τ the tree refines to: the morph must follow the same one.
         let screen = self.tree.screen_space();
-        FrameDraw::new(eye, screen.k(), screen.threshold_px(), self.options.morph != MorphRule::Off)
+        let morph = self.options.morph != MorphRule::Off && self.seams.morphs();
+        FrameDraw::new(eye, screen.k(), screen.threshold_px(), morph)
     }
 
     /// Changes the view the LOD tree refines and culls for: τ, the screen
@@ -1492,6 +1561,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         figures.under_sea = self.draw.under_sea;
         figures.holes = self.draw.holes;
         figures.max_neighbor_lod_diff = self.tree.stats().max_neighbor_lod_diff;
+        figures.max_drawn_lod_diff = self.draw.max_lod_diff;
+        figures.unsettled = self.draw.unsettled;
         figures.times = self.times;
         figures.jobs_in_flight = self.jobs_in_flight();
         figures.prefetch_jobs = figures.jobs_in_flight - self.meshing.view_pending();
@@ -1522,6 +1593,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn store(&mut self, done: MeshResult<H>, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) -> bool {
         let key = done.key;
         let column = key.column();
+        if done.seams != self.seams {
+            // Made before a switch of strategy: asked for again.
+            return false;
+        }
         if let Some(wanted) = self.cache.required.remove(&key)
             && done.generation < wanted
         {
@@ -1546,7 +1621,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let loaded = match mesh {
             Made::Uploaded(loaded) => loaded,
             Made::Mesh(mesh) => {
-                let mut loaded = LoadedChunk::uploaded(key, mesh, |key, mesh| upload(key, mesh), true);
+                let mut loaded = LoadedChunk {
+                    made_for: done.relations,
+                    ..LoadedChunk::uploaded(key, mesh, |key, mesh| upload(key, mesh), true)
+                };
                 if !self.cache.keep_cpu {
                     // Freed by a meshing worker (`JobState::spent`).
                     self.spent.extend(loaded.cpu.take());
@@ -1666,6 +1744,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let priority = |column: ChunkColumn| {
             let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
             layout.voxel_edge(column.lod) * k / distance
+        };
+        // The LODs a new mesh is made for: the tree's around a leaf (what
+        // will be drawn once the view settles), the same all round for a
+        // stand-in; a drawn column's are checked against what is drawn.
+        let seams = self.seams;
+        let predicted = |column: ChunkColumn| match seams.meshes_for_neighbours() {
+            true => tree.context(column).map_or(SAME_ALL_ROUND, |context| side_relations(&context)),
+            false => SAME_ALL_ROUND,
         };
         let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
         // Leaves behind the terrain's horizon are drawn as their coarsest
@@ -1824,7 +1910,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         .into_iter()
                         .map(|layer| column.chunk(layer))
                         .filter(|&key| !cache.holds(key))
-                        .map(|key| Job { tier: Tier::Prefetch, priority, key }),
+                        .map(|key| Job { tier: Tier::Prefetch, priority, key, seams, relations: predicted(column) }),
                 );
             }
             // The most urgent last: meshed jobs come off its end.
@@ -1857,8 +1943,24 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.occluder_radius = occluder.unwrap_or(f64::NAN);
         drawn_set.extend(drawn.iter().map(|&(c, _)| c));
         let set = &drawn_set;
+        // With meshes made for their neighbours: every ancestor of a drawn
+        // column (a side whose same-LOD neighbour is one meets finer ones).
+        let mut above = HashSet::default();
+        if seams.meshes_for_neighbours() {
+            for &(column, _) in &drawn {
+                let mut c = column;
+                while let Some(up) = parent(c).filter(|_| c.lod < max_lod) {
+                    if !above.insert(up) {
+                        break;
+                    }
+                    c = up;
+                }
+            }
+        }
+        let mut arounds = Vec::new();
         let mut min_radius = f64::INFINITY;
         let options = self.options;
+        let mut max_lod_diff = 0;
         self.drawn_slots.clear();
         self.draw.columns = drawn
             .iter()
@@ -1889,13 +1991,34 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     min_radius = min_radius.min(low);
                 }
                 self.drawn_slots.push(slot);
-                (column, chunk_draw(voxels, column, &sides, set, options, eye))
+                let around = drawn_across(&sides, set, &above, max_lod);
+                if seams.meshes_for_neighbours() {
+                    arounds.push(around);
+                }
+                let draw = chunk_draw(voxels, column, &sides, &around, options, eye);
+                for across in around {
+                    if let Across::Drawn(other) = across {
+                        max_lod_diff = max_lod_diff.max(other.lod - column.lod);
+                    }
+                }
+                (column, draw)
             })
             .collect();
         self.draw.holes = holes;
         self.draw.stand_ins = stand_ins;
         self.draw.max_stand_in_levels = max_levels;
         self.draw.min_surface_radius = min_radius;
+        self.draw.max_lod_diff = max_lod_diff;
+        let (drawn_relations, reseams) = if seams.meshes_for_neighbours() {
+            settle_seams(voxels, cache, &mut self.draw, &self.drawn_slots, &arounds, seams, options, &priority)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let columns = &self.draw.columns;
+        let drawn_relations = |column: ChunkColumn| {
+            let index = columns.binary_search_by_key(&column, |&(c, _)| c).ok()?;
+            drawn_relations.get(index).copied()
+        };
 
         // Jobs: every chunk of a wanted column not meshed and not running,
         // the largest projected voxel first.
@@ -1908,14 +2031,17 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let (_, entry) =
                 cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
             entry.last_used = frame;
+            let relations = predicted(column);
             for &layer in &entry.layers {
                 if !entry.chunks.contains(layer) {
-                    jobs.push(Job { tier: Tier::View, priority, key: column.chunk(layer) });
+                    let key = column.chunk(layer);
+                    jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
                 }
             }
         }
         // Drawn chunks an edit changed go first: the player is looking at
         // them. One no longer drawn is dropped, to be meshed when needed.
+        jobs.extend(reseams);
         let undrawn: Vec<ChunkKey> = cache.stale.keys().filter(|key| !set.contains(&key.column())).copied().collect();
         for key in undrawn {
             cache.stale.remove(&key);
@@ -1925,7 +2051,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         gained.retain(|key| stale.contains_key(key));
         for &key in stale.keys() {
             let priority = if gained.contains(&key) { priority(key.column()) } else { f64::MAX };
-            jobs.push(Job { tier: Tier::View, priority, key });
+            let relations = drawn_relations(key.column()).unwrap_or_else(|| predicted(key.column()));
+            jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
         }
         // Prefetching only while there is room for it: what the view needs
         // is never evicted for it.
@@ -2000,8 +2127,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                             mesh_chunk(
                                 &*voxels,
                                 job.key,
-                                &ChunkLodContext::uniform(job.key.lod),
-                                MeshOptions::STREAMING,
+                                &mesh_context(job.key.lod, &job.relations),
+                                job.seams.mesh_options(),
                                 &mut buffer.borrow_mut(),
                             )
                             .map(|mesh| mesh.render_mesh())
@@ -2016,14 +2143,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     // Uploaded here when the game gave an uploader: the
                     // frame thread then copies no mesh bytes.
                     let result = result.map(|mesh| match &uploader {
-                        Some(upload) => Made::Uploaded(LoadedChunk::uploaded(job.key, mesh, &**upload, keep_cpu)),
+                        Some(upload) => Made::Uploaded(LoadedChunk {
+                            made_for: job.relations,
+                            ..LoadedChunk::uploaded(job.key, mesh, &**upload, keep_cpu)
+                        }),
                         None => Made::Mesh(mesh),
                     });
                     let millis = start.elapsed().as_secs_f64() * 1e3;
                     // It stays in the running set until collected, so no
                     // queue refresh asks for it again while it waits in the
                     // channel.
-                    if sender.send(MeshResult { key: job.key, generation, result, millis }).is_err() {
+                    let done = MeshResult {
+                        key: job.key,
+                        seams: job.seams,
+                        relations: job.relations,
+                        generation,
+                        result,
+                        millis,
+                    };
+                    if sender.send(done).is_err() {
                         // The streamer is gone: stop meshing its queue.
                         break;
                     }
@@ -2141,49 +2279,169 @@ fn under_sea<S: VoxelSource + ?Sized>(
     hidden
 }
 
-/// The draw constants of `column` when the columns in `drawn` are drawn:
-/// the error it morphs towards and, per side, a skirt as deep as the LOD
-/// drawn across that side needs (none next to the same LOD, whose
+/// The draw constants of `column` when `around` is drawn across its
+/// sides: the error it morphs towards and, per side, a skirt as deep as
+/// the LOD drawn across that side needs (none next to the same LOD, whose
 /// boundary vertices are shared exactly).
 fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,
     sides: &ColumnSides,
-    drawn: &HashSet<ChunkColumn>,
+    around: &[Across; 4],
     options: DrawOptions,
     eye: nebula_math::DVec3,
 ) -> ChunkDraw {
     let layout = voxels.layout();
-    let max_lod = layout.max_lod();
     let parent_error = match options.morph {
         MorphRule::Own => voxels.geometric_error(column.lod),
         _ => layout.merge_error(column.lod),
     };
     let hidden_sides = if options.cull_back_sides { sides.back_sides(eye) } else { 0 };
     let mut skirt_depths = [0.0f32; 4];
-    if !options.skirts {
-        return ChunkDraw { parent_error, skirt_depths, hidden_sides };
-    }
-    for (depth, across) in skirt_depths.iter_mut().zip(sides.across) {
-        let Some(mut across) = across else { continue };
-        if drawn.contains(&across) {
-            continue;
+    if options.skirts {
+        for (depth, across) in skirt_depths.iter_mut().zip(around) {
+            // A coarser column drawn across (an ancestor of the same-LOD
+            // neighbour), else finer ones (or none): the deepest a finer
+            // side can need is the depth for the same LOD.
+            let other = match *across {
+                Across::Drawn(other) if other.lod == column.lod => continue,
+                Across::Drawn(other) => other.lod,
+                Across::Finer(_) | Across::Nothing => column.lod,
+            };
+            *depth = skirt_depth(voxels, column.lod, other) as f32;
         }
-        // A coarser column drawn across (an ancestor of the same-LOD
-        // neighbour), else finer ones: the deepest a finer side can need is
-        // the depth for the same LOD.
-        let mut other = column.lod;
-        while across.lod < max_lod {
-            let Some(up) = parent(across) else { break };
-            across = up;
-            if drawn.contains(&across) {
-                other = across.lod;
-                break;
-            }
-        }
-        *depth = skirt_depth(voxels, column.lod, other) as f32;
     }
     ChunkDraw { parent_error, skirt_depths, hidden_sides }
+}
+
+/// What is drawn across one side of a drawn column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Across {
+    /// Nothing (out of view).
+    Nothing,
+    /// The column of the same LOD, or a coarser one holding it.
+    Drawn(ChunkColumn),
+    /// Columns finer than the same-LOD column there (which is given).
+    Finer(ChunkColumn),
+}
+
+/// What is drawn across each side of a column (`sides`), given the drawn
+/// columns and every ancestor of one (`above`; empty, finer columns and
+/// none are not told apart).
+fn drawn_across(
+    sides: &ColumnSides,
+    drawn: &HashSet<ChunkColumn>,
+    above: &HashSet<ChunkColumn>,
+    max_lod: u8,
+) -> [Across; 4] {
+    sides.across.map(|across| {
+        let Some(across) = across else { return Across::Nothing };
+        if drawn.contains(&across) {
+            return Across::Drawn(across);
+        }
+        if above.contains(&across) {
+            return Across::Finer(across);
+        }
+        let mut up = across;
+        while let Some(next) = parent(up).filter(|_| up.lod < max_lod) {
+            up = next;
+            if drawn.contains(&up) {
+                return Across::Drawn(up);
+            }
+        }
+        Across::Nothing
+    })
+}
+
+/// Checks every drawn column's meshes against the LODs drawn around it
+/// ([`SeamStrategy`]): lowers fallback skirts on both sides of every seam
+/// with an unsettled column, as deep as the LODs drawn and meshed for
+/// there need (with stitches, no skirt elsewhere), counts the unsettled
+/// columns and returns the drawn relations of each drawn column and the
+/// jobs that mesh the unsettled chunks again.
+#[allow(clippy::too_many_arguments)]
+fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
+    voxels: &S,
+    cache: &MeshCache<H>,
+    draw: &mut DrawList,
+    slots: &[Option<usize>],
+    arounds: &[[Across; 4]],
+    seams: SeamStrategy,
+    options: DrawOptions,
+    priority: &impl Fn(ChunkColumn) -> f64,
+) -> (Vec<SideRelations>, Vec<Job>) {
+    let max_lod = voxels.layout().max_lod();
+    let cached = |index: usize| {
+        let column = draw.columns[index].0;
+        slots[index].and_then(|slot| cache.columns.in_slot(slot, column)).or_else(|| cache.columns.get(&column))
+    };
+    let mut masks = Vec::with_capacity(draw.columns.len());
+    let mut relations_drawn = Vec::with_capacity(draw.columns.len());
+    // Unsettled columns, and every ancestor of one, with the coarsest LOD
+    // their meshes were made for.
+    let mut unsettled: HashMap<ChunkColumn, u8> = HashMap::default();
+    let mut jobs = Vec::new();
+    for (index, around) in arounds.iter().enumerate() {
+        let column = draw.columns[index].0;
+        let relations = around.map(|across| match across {
+            Across::Drawn(other) if other.lod > column.lod => {
+                nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff: other.lod - column.lod }
+            }
+            Across::Finer(_) => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
+            _ => nebula_lod::NeighborLodRelation::Same,
+        });
+        let mut mask = 0u8;
+        let mut coarsest = column.lod;
+        for (layer, chunk) in cached(index).into_iter().flat_map(|c| c.chunks.iter()) {
+            coarsest = coarsest.max(coarsest_made_for(column.lod, &chunk.made_for));
+            let wrong = (0..4).filter(|&s| chunk.made_for[s] != relations[s]).fold(0u8, |m, s| m | 1 << s);
+            if wrong != 0 {
+                mask |= wrong;
+                let key = column.chunk(layer);
+                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations });
+            }
+        }
+        if mask != 0 {
+            unsettled.insert(column, coarsest);
+        }
+        relations_drawn.push(relations);
+        masks.push(mask);
+    }
+    let mut unsettled_above: HashMap<ChunkColumn, u8> = HashMap::default();
+    for (&column, &coarsest) in &unsettled {
+        let mut c = column;
+        while c.lod < max_lod {
+            let Some(up) = parent(c) else { break };
+            let entry = unsettled_above.entry(up).or_insert(0);
+            *entry = (*entry).max(coarsest);
+            c = up;
+        }
+    }
+    draw.unsettled = unsettled.len();
+    for (index, (column, chunk_draw)) in draw.columns.iter_mut().enumerate() {
+        if seams == SeamStrategy::Stitched {
+            chunk_draw.skirt_depths = [0.0; 4];
+        }
+        if !options.skirts {
+            continue;
+        }
+        let own = unsettled.get(column).copied();
+        for (side, across) in arounds[index].iter().enumerate() {
+            let (other_lod, other) = match *across {
+                Across::Nothing => (column.lod, None),
+                Across::Drawn(other) => (other.lod, unsettled.get(&other).copied()),
+                // The deepest a finer side can need is the same LOD's.
+                Across::Finer(same) => (column.lod, unsettled_above.get(&same).copied()),
+            };
+            if masks[index] & (1 << side) == 0 && other.is_none() {
+                continue;
+            }
+            let coarsest = column.lod.max(other_lod).max(own.unwrap_or(0)).max(other.unwrap_or(0));
+            let depth = skirt_depth(voxels, column.lod.min(other_lod), coarsest) as f32;
+            chunk_draw.skirt_depths[side] = chunk_draw.skirt_depths[side].max(depth);
+        }
+    }
+    (relations_drawn, jobs)
 }
 
 /// A column's sides, worked out once per column: the outermost lattice

@@ -23,6 +23,7 @@ use nebula_render::context::GpuContext;
 
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet, VoxelSource};
+use nebula_world::seams::SeamStrategy;
 
 const SENTINEL: [u8; 3] = [255, 0, 255];
 const SIZE: (u32, u32) = (640, 400);
@@ -116,22 +117,26 @@ fn check_flight(name: &str, settings: &PlanetSettings, flight: &Flight, fps: f64
         flight,
         fps,
         nebula_demo::app::MeshCache::<nebula_render::GpuMesh>::default_max_bytes(),
+        SeamStrategy::Skirts,
     )
     .0
 }
 
-/// [`check_flight`] with the mesh cache held to `max_bytes`.
+/// [`check_flight`] with the mesh cache held to `max_bytes` and seams
+/// closed by `seams`.
 fn check_flight_in_budget(
     name: &str,
     settings: &PlanetSettings,
     flight: &Flight,
     fps: f64,
     max_bytes: u64,
+    seams: SeamStrategy,
 ) -> (FlightReport, PlanetApp) {
     let first = flight.pose(0.0);
     let template = Shot { up: first.up, ..shot(first.pos, first.look_at, 60.0) };
     let mut app = app(settings, &template, DrawOptions::default());
     app.streamer_mut().0.cache.max_bytes = max_bytes;
+    app.streamer_mut().0.set_seam_strategy(seams);
     let dir = folder().join(name);
     let report = fly(&mut app, flight, &template, fps, Some(&dir)).expect("flies");
     std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&report.json()).expect("json"))
@@ -325,7 +330,7 @@ fn earth_fast_low_flights_are_crack_free_and_stay_in_the_mesh_budget() {
         let (altitude, speed, pitch) = (15.0 + unit() * 135.0, 600.0 + unit() * 2_400.0, 10.0 + unit() * 40.0);
         let flight = ground_flight(&settings, start, heading, speed, altitude, pitch, 2.0);
         let name = format!("earth-fast-flight-{n}");
-        let (report, app) = check_flight_in_budget(&name, &settings, &flight, 8.0, budget);
+        let (report, app) = check_flight_in_budget(&name, &settings, &flight, 8.0, budget, SeamStrategy::Skirts);
         let held = report.frames.iter().map(|f| f.figures.frame.held_bytes).max().unwrap_or(0);
         println!("{name}: {altitude:.0} m up at {speed:.0} m/s, {pitch:.0} deg down: meshes held <= {} MB", held >> 20);
         assert!(held <= budget + budget / 10, "{name}: {held} bytes of meshes held, budget {budget}");
@@ -347,6 +352,78 @@ fn earth_fast_low_flights_are_crack_free_and_stay_in_the_mesh_budget() {
         fullest = fullest.max(held);
     }
     assert!(fullest > budget / 2, "the budget was never approached ({fullest} bytes): the check cannot tell");
+}
+
+#[test]
+fn every_seam_strategy_is_crack_free_in_every_frame_and_stitches_need_no_skirt() {
+    if !adapter_or_skip("seam strategies") {
+        return;
+    }
+    // The meshes of `constrained` and `stitched` depend on the LODs drawn
+    // around them: every frame of these, seams waiting to be meshed again
+    // included (closed by fallback skirts meanwhile), is checked. Poses from
+    // a fixed seed (a spot, near a cube edge, near a cube corner; 5-200 m up),
+    // each held 1 s while streaming, then settled and checked again with
+    // skirts and with none (the control: with none, skirted and
+    // constrained seams open where the LODs differ, stitched ones stay
+    // closed); and a 300 m/s flight over a cube edge.
+    let settings = earth();
+    let mut rng = Rng(0x5ea_5eed);
+    let bases = [
+        DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)),
+        DVec3::new(-1.0, 1.0, rng.range(-0.9, 0.9)),
+        DVec3::new(1.0, 1.0, -1.0),
+    ];
+    let budget = nebula_demo::app::MeshCache::<nebula_render::GpuMesh>::default_max_bytes();
+    let mut open_without_skirts = 0;
+    for (n, base) in bases.iter().enumerate() {
+        let jitter = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)) * 4e-5;
+        let dir = (base.normalize() + jitter).normalize();
+        let altitude = 5.0 * 40f64.powf(rng.next());
+        let heading = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        let (eye, look_at) = pose(&settings, dir, altitude, heading, rng.range(0.0, 40.0));
+        let hold = |t| Keyframe { t, pos: eye, look_at, up: None };
+        let flight = Flight::from_keyframes(vec![hold(0.0), hold(1.0)]).expect("flight");
+        for seams in SeamStrategy::ALL {
+            let name = format!("earth-{seams}-pose-{n}");
+            let (report, mut app) = check_flight_in_budget(&name, &settings, &flight, 6.0, budget, seams);
+            let waited = report.frames.iter().map(|f| f.figures.frame.unsettled).max().unwrap_or(0);
+            let view = shot(eye, look_at, 60.0);
+            let settled = render_app(&mut app, &view).expect("renders");
+            let f = &settled.figures.frame;
+            println!(
+                "{name}: at most {waited} columns waiting for their seams in a frame; settled: {} chunks, {} \
+                 triangles, {} skirt triangles, LOD difference across a side up to {}",
+                f.chunks, f.triangles, f.skirt_triangles, f.max_drawn_lod_diff
+            );
+            assert_eq!(
+                settled.figures.crack_pixels,
+                Some(0),
+                "{name}: settled, cracks at {:?}",
+                settled.figures.cracks.samples
+            );
+            assert_eq!(f.unsettled, 0, "{name}: seams still waiting once settled");
+            app.set_draw_options(DrawOptions { skirts: false, ..DrawOptions::default() });
+            let bare = render_app(&mut app, &view).expect("renders");
+            let cracks = bare.figures.crack_pixels.expect("checked");
+            println!("{name}: without skirts, {cracks} crack pixels");
+            match seams {
+                SeamStrategy::Stitched => {
+                    assert_eq!(f.skirt_triangles, 0, "{name}: a settled stitched view drew skirts");
+                    assert_eq!(cracks, 0, "{name}: stitches alone leave cracks at {:?}", bare.figures.cracks.samples);
+                }
+                _ => open_without_skirts += cracks,
+            }
+        }
+    }
+    assert!(open_without_skirts > 0, "seams without skirts never opened: the control cannot tell");
+    let edge = DVec3::new(1.0, 0.3, -1.0).normalize();
+    let across = DVec3::new(1.0, 0.0, 1.0);
+    let start = (edge - across.normalize() * (400.0 / settings.radius)).normalize();
+    let edge_flight = ground_flight(&settings, start, across, 300.0, 60.0, 15.0, 2.0);
+    for seams in [SeamStrategy::Constrained, SeamStrategy::Stitched] {
+        check_flight_in_budget(&format!("earth-{seams}-edge-flight"), &settings, &edge_flight, 8.0, budget, seams);
+    }
 }
 
 #[test]

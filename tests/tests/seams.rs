@@ -259,3 +259,49 @@ proptest! {
         prop_assert_eq!(boundary_topology(&view).t_junctions, 0);
     }
 }
+
+#[test]
+fn stitched_seams_close_every_view_and_lod_step_without_a_skirt() {
+    // The same LOD steps and cameras as above, meshed with stitches in the
+    // boundary planes instead of skirts (`nebula_meshing::stitch`): no
+    // crack, no skirt triangle. (With no seam closure at all the same
+    // steps leak: `the_oracle_finds_cracks_when_seams_are_off`.)
+    let source = planet(3);
+    for k in 1..=3 {
+        for (face, at_face_edge) in [(CubeFace::PosY, false), (CubeFace::NegZ, true)] {
+            let (view, camera) = lod_step(&source, k, face, at_face_edge, MeshOptions::STITCHED);
+            let name =
+                format!("stitched LOD step {k} on {face:?}{}", if at_face_edge { " across a cube edge" } else { "" });
+            let report = cast_cracks(&view, &camera, RAYS, RAYS);
+            let skirts: usize = view.meshes.iter().map(|m| m.skirt_triangle_count()).sum();
+            println!("{name}: {} triangles, cracks {}", report.triangles, report.cracks);
+            assert_eq!(report.cracks, 0, "{name}: cracks near {:?}", report.first_crack_chunks);
+            assert_eq!(skirts, 0, "{name}");
+        }
+    }
+    let source = planet(7);
+    let corner = DVec3::ONE.normalize();
+    let edge = DVec3::new(1.0, 1.0, 0.0).normalize();
+    let cameras = [
+        (
+            "low over a cube corner",
+            60.0,
+            look(above(&source, corner, 40.0), above(&source, corner + DVec3::X * 0.05, 0.0)),
+        ),
+        (
+            "grazing along a cube edge, 12°",
+            12.0,
+            look(above(&source, edge, 15.0), above(&source, (edge + DVec3::Z * 0.08).normalize(), 0.0)),
+        ),
+    ];
+    for (name, fov, camera) in &cameras {
+        let view = assemble(&source, camera, settings(*fov, BalanceMode::Unrestricted), MeshOptions::STITCHED).unwrap();
+        let report = cast_cracks(&view, camera, RAYS, RAYS);
+        let diff = view.stats.as_ref().map_or(0, |s| s.max_neighbor_lod_diff);
+        println!(
+            "stitched {name}: {} triangles, cracks {}, max LOD difference {diff}",
+            report.triangles, report.cracks
+        );
+        assert_eq!(report.cracks, 0, "stitched {name}: cracks near {:?}", report.first_crack_chunks);
+    }
+}
