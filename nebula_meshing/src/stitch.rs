@@ -126,29 +126,34 @@ pub(crate) fn stitch_padding<S: VoxelSource + ?Sized>(
             }
             let per_edge = i64::from(layout.voxels_per_edge(key.lod));
             let size = i64::from(CHUNK_SIZE);
-            let mut last: Option<(VoxelCoord, Voxel)> = None;
+            // The padding's radial voxels, fine, and the coarse ones
+            // holding them: one column read per coarse column.
+            let first_h = i64::from(key.layer) * size - 1;
+            let coarse_h = |h: i64| h.div_euclid(1 << lod_diff);
+            let bottom = coarse_h(first_h);
+            let mut coarse =
+                vec![Voxel::AIR; (coarse_h(first_h + i64::from(PADDED_CHUNK_SIZE) - 1) - bottom + 1) as usize];
+            let mut read: Option<(nebula_voxel::CubeFace, i64, i64)> = None;
             for along in 1..=CHUNK_SIZE {
-                for height in rows.clone() {
-                    let at = padded(side, true, height, along);
-                    let (ci, cj) = (
-                        i64::from(key.x) * size + i64::from(at[0]) - 1,
-                        i64::from(key.y) * size + i64::from(at[2]) - 1,
-                    );
-                    let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
-                    let h = i64::from(key.layer) * size + i64::from(height) - 1;
-                    let coarse = VoxelCoord {
+                let at = padded(side, true, 0, along);
+                let (ci, cj) =
+                    (i64::from(key.x) * size + i64::from(at[0]) - 1, i64::from(key.y) * size + i64::from(at[2]) - 1);
+                let Some((face, i, j)) = key.face.wrap_cell(ci, cj, per_edge) else { continue };
+                let column = (face, i >> lod_diff, j >> lod_diff);
+                if read != Some(column) {
+                    let bottom = VoxelCoord {
                         face,
                         lod: key.lod + lod_diff,
-                        i: (i >> lod_diff) as u32,
-                        j: (j >> lod_diff) as u32,
-                        h: h.div_euclid(1 << lod_diff) as i32,
+                        i: column.1 as u32,
+                        j: column.2 as u32,
+                        h: bottom as i32,
                     };
-                    let voxel = match last {
-                        Some((known, voxel)) if known == coarse => voxel,
-                        _ => source.voxel(coarse)?,
-                    };
-                    last = Some((coarse, voxel));
-                    voxels.set(at, voxel);
+                    source.column_voxels(bottom, &mut coarse)?;
+                    read = Some(column);
+                }
+                for height in rows.clone() {
+                    let voxel = coarse[(coarse_h(first_h + i64::from(height)) - bottom) as usize];
+                    voxels.set(padded(side, true, height, along), voxel);
                 }
             }
             Ok(Some(StitchedSide { side, coarser_by: Some(lod_diff) }))

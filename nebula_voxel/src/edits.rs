@@ -401,6 +401,14 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
         Ok(self.edited(at, self.base.voxel(at)?))
     }
 
+    fn column_voxels(&self, bottom: VoxelCoord, out: &mut [Voxel]) -> Result<(), VoxelError> {
+        self.base.column_voxels(bottom, out)?;
+        for (h, voxel) in (bottom.h..).zip(out.iter_mut()) {
+            *voxel = self.edited(VoxelCoord { h, ..bottom }, *voxel);
+        }
+        Ok(())
+    }
+
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
         self.base.fill_chunk(key, out)?;
         let touched = self.touched_chunks.contains(&key);

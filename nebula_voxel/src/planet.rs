@@ -1247,6 +1247,18 @@ impl VoxelSource for ProceduralPlanet {
         Ok(self.classify(column, at.h.into(), at.lod))
     }
 
+    fn column_voxels(&self, bottom: VoxelCoord, out: &mut [Voxel]) -> Result<(), VoxelError> {
+        self.layout.check_voxel(bottom)?;
+        let top = i32::try_from(out.len()).ok().and_then(|n| bottom.h.checked_add(n - 1));
+        self.layout.check_voxel(VoxelCoord { h: top.unwrap_or(i32::MAX), ..bottom })?;
+        // The column's noise once, for every voxel of it.
+        let column = self.column(bottom.face, bottom.lod, bottom.i.into(), bottom.j.into());
+        for (h, voxel) in (i64::from(bottom.h)..).zip(out.iter_mut()) {
+            *voxel = self.classify(column, h, bottom.lod);
+        }
+        Ok(())
+    }
+
     fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
         self.layout.check_key(key)?;
         out.set_key(key);

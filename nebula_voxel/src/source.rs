@@ -120,6 +120,21 @@ pub trait VoxelSource: Send + Sync {
     /// [`VoxelError`] for coordinates off the planet.
     fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError>;
 
+    /// The voxels of one column, `out.len()` of them upwards from `bottom`
+    /// (`bottom.h` is the first; its face, LOD, `i` and `j` name the
+    /// column): what a stitched seam reads of a coarser neighbour. The
+    /// default asks [`VoxelSource::voxel`] for each; a source with work per
+    /// column (noise) does it once.
+    ///
+    /// # Errors
+    /// [`VoxelError`] for coordinates off the planet.
+    fn column_voxels(&self, bottom: VoxelCoord, out: &mut [Voxel]) -> Result<(), VoxelError> {
+        for (h, voxel) in (bottom.h..).zip(out.iter_mut()) {
+            *voxel = self.voxel(VoxelCoord { h, ..bottom })?;
+        }
+        Ok(())
+    }
+
     /// Fills `out` with chunk `key` and its one-voxel padding (read across
     /// chunk and cube-face edges), and sets `out`'s key.
     ///

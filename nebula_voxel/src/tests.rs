@@ -1381,3 +1381,41 @@ fn a_survey_answers_each_view_as_the_source_does_one_by_one() {
     println!("{narrower} column views narrower than all layers");
     assert!(narrower > 0, "no view left a layer out: the check cannot tell");
 }
+
+/// `column_voxels` is `voxel` asked up a column, at every LOD, for the
+/// planet and for an edited planet (inside and beside a crater).
+#[test]
+fn column_voxels_are_the_voxels_one_by_one() {
+    let planet = small().clone();
+    let layout = *planet.layout();
+    let up = DVec3::new(0.3, 0.8, -0.5).normalize();
+    let ground = planet.surface_point(up);
+    let mut edited = EditedSource::new(planet.clone());
+    edited.fill_sphere(ground, 6.0, Voxel::AIR).expect("crater");
+    let sources: [&dyn VoxelSource; 2] = [&planet, &edited];
+    let mut state = 0x0c01_u64;
+    for lod in 0..=3u8 {
+        for n in 0..6 {
+            // The crater's column, then random ones near it.
+            let jitter = if n == 0 { 0.0 } else { 2e-3 };
+            let direction = (up
+                + DVec3::new(unit_random(&mut state), unit_random(&mut state), unit_random(&mut state)) * jitter)
+                .normalize();
+            let at = layout.voxel_at(direction * ground.length()).expect("voxel");
+            let bottom = VoxelCoord { lod, i: at.i >> lod, j: at.j >> lod, h: (at.h >> lod) - 12, ..at };
+            for source in sources {
+                let mut column = [Voxel::AIR; 24];
+                source.column_voxels(bottom, &mut column).expect("column");
+                for (k, voxel) in column.iter().enumerate() {
+                    let one = source.voxel(VoxelCoord { h: bottom.h + k as i32, ..bottom }).expect("voxel");
+                    assert_eq!(*voxel, one, "LOD {lod}, column {bottom:?}, voxel {k}");
+                }
+                assert!(column.iter().any(|v| v.is_solid()) && column.iter().any(|v| !v.is_solid()), "{bottom:?}");
+            }
+        }
+    }
+    // Its first voxel on the planet, its last past the lattice's range.
+    let near_top = VoxelCoord { h: i32::MAX / 4 - 5, ..layout.voxel_at(ground).expect("voxel") };
+    assert!(planet.voxel(near_top).is_ok());
+    assert!(planet.column_voxels(near_top, &mut [Voxel::AIR; 100]).is_err(), "a column past the lattice");
+}
