@@ -1365,6 +1365,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn set_voxels(&mut self, voxels: Arc<S>, dirty: &[ChunkKey]) -> Result<(), StreamError> {
         self.generation += 1;
         self.voxels = voxels;
+        let stitched = self.stitched_across(dirty);
+        let dirty = &[dirty, &stitched].concat();
         // An edit can put anything on the sea bed, and moves bounds.
         self.under_sea.clear();
         self.culled_for = None;
@@ -1414,6 +1416,45 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         refreshed?;
         Ok(())
+    }
+
+    /// The chunks held whose stitches read voxels of `dirty` chunks: with
+    /// [`SeamStrategy::Stitched`] a chunk next to a coarser column holds
+    /// that column's voxels along the seam (`nebula_meshing::stitch`), up to
+    /// a coarse voxel deep, which its own padding does not reach. Every held
+    /// chunk stitched to some coarser neighbour that lies under a same-LOD
+    /// neighbour of a dirty column (more than needed: edits are rare).
+    fn stitched_across(&self, dirty: &[ChunkKey]) -> Vec<ChunkKey> {
+        if self.seams != SeamStrategy::Stitched || dirty.is_empty() {
+            return Vec::new();
+        }
+        let layout = self.voxels.layout();
+        let max_lod = layout.max_lod();
+        let beside: HashSet<ChunkColumn> = dirty
+            .iter()
+            .flat_map(|key| FaceEdge::ALL.map(|edge| layout.neighbor(key.column().chunk(0), edge).column()))
+            .collect();
+        let under_beside = |column: ChunkColumn| {
+            let mut c = column;
+            while let Some(up) = parent(c).filter(|_| c.lod < max_lod) {
+                if beside.contains(&up) {
+                    return true;
+                }
+                c = up;
+            }
+            false
+        };
+        let stitched = |chunk: &LoadedChunk<H>| {
+            chunk.made_for.iter().any(|r| matches!(r, nebula_lod::NeighborLodRelation::HigherThanNeighbor { .. }))
+        };
+        self.cache
+            .columns
+            .iter()
+            .filter(|(column, _)| under_beside(**column))
+            .flat_map(|(column, cached)| {
+                cached.chunks.iter().filter(|(_, chunk)| stitched(chunk)).map(|(layer, _)| column.chunk(layer))
+            })
+            .collect()
     }
 
     /// Re-reads every held column's layers once the eye went down into

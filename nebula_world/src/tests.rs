@@ -677,7 +677,7 @@ mod streaming {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
     use nebula_lod::{Camera, LodSettings};
-    use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, VoxelSource};
+    use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord, VoxelSource};
 
     use super::unit;
     use crate::stream::{MeshHandle, Streamer};
@@ -1093,6 +1093,110 @@ mod streaming {
             assert!(frames < 20_000, "did not settle after the edit");
         }
         println!("tower: {frames} frames to settle, {before} -> {} triangles", streamer.figures().triangles);
+    }
+
+    /// Every drawn chunk's mesh against a fresh one of its key, made from
+    /// `voxels` for the LODs around it it was made for: how many differ.
+    fn stale_meshes<S: VoxelSource + 'static>(streamer: &Streamer<S, Sized>, voxels: &S) -> usize {
+        let seams = streamer.seam_strategy();
+        let mut buffer = nebula_meshing::ChunkMeshBuffer::new();
+        streamer
+            .drawn()
+            .filter(|(key, chunk, _)| {
+                let context = crate::seams::mesh_context(key.lod, &chunk.made_for);
+                let fresh = nebula_meshing::mesh_chunk(voxels, *key, &context, seams.mesh_options(), &mut buffer)
+                    .expect("meshes")
+                    .render_mesh();
+                chunk.cpu.as_ref() != Some(&fresh)
+            })
+            .count()
+    }
+
+    #[test]
+    fn stitched_views_hold_what_their_voxels_and_neighbours_make_after_an_edit_across_a_seam() {
+        // A stitched chunk holds the voxels of its coarser neighbour along
+        // the seam up to a coarse voxel deep, past its own padding. An edit
+        // there (the far-corner voxels the coarse voxels sample, one fine
+        // voxel or more beyond the seam) leaves the fine chunk's own voxels
+        // alone; once settled, every drawn chunk must still be the mesh its
+        // voxels and the LODs around it make.
+        let settings = PlanetSettings::small(7);
+        let mut world = crate::World::open(settings, None).unwrap();
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = world.source().base().surface_point(up);
+        let side = up.any_orthonormal_vector();
+        let eye = ground + up * 40.0 - side * 60.0;
+        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+        streamer.keep_cpu_meshes(true);
+        streamer.set_seam_strategy(crate::seams::SeamStrategy::Stitched);
+        let settle = |streamer: &mut Streamer<_, Sized>| {
+            for frames in 0.. {
+                streamer.update(camera, &mut { upload });
+                if streamer.settled() && streamer.figures().unsettled == 0 {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                assert!(frames < 20_000, "did not settle");
+            }
+        };
+        settle(&mut streamer);
+        assert_eq!(stale_meshes(&streamer, &*world.voxels()), 0, "settled before any edit");
+        // The drawn chunk nearest the eye stitched on its +X or +Z side to a
+        // coarser column on the same face.
+        let layout = *world.source().layout();
+        let sphere = *layout.sphere();
+        let (key, lod_diff, positive_x) = streamer
+            .drawn()
+            .filter_map(|(key, chunk, _)| {
+                [(0, true), (2, false)].into_iter().find_map(|(index, positive_x)| match chunk.made_for[index] {
+                    nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff } => {
+                        Some((key, lod_diff, positive_x))
+                    }
+                    _ => None,
+                })
+            })
+            .filter(|(key, _, positive_x)| {
+                let edge = if *positive_x { nebula_math::FaceEdge::PosU } else { nebula_math::FaceEdge::PosV };
+                layout.neighbor(*key, edge).face == key.face
+            })
+            .min_by(|a, b| {
+                let distance = |key: &nebula_voxel::ChunkKey| layout.chunk_origin(*key).unwrap().distance(eye);
+                distance(&a.0).total_cmp(&distance(&b.0))
+            })
+            .expect("a stitched seam in view");
+        // The coarse voxels across the seam, along the chunk's side, over
+        // its height: flip each one's far-corner LOD-0 voxel.
+        let span = layout.voxel_span(key.lod);
+        let coarse = span << lod_diff;
+        let size = 32 * span;
+        let seam = i64::from(if positive_x { key.x } else { key.y } + 1) * size;
+        let along0 = i64::from(if positive_x { key.y } else { key.x }) * size;
+        let bottom = i64::from(key.layer) * size;
+        let mut edits = Vec::new();
+        for along in (along0..along0 + size).step_by(coarse as usize) {
+            for h in (bottom..bottom + size).step_by(coarse as usize) {
+                let far = |c: i64| (c / coarse + 1) * coarse - 1;
+                let (i, j) = if positive_x { (seam + coarse - 1, far(along)) } else { (far(along), seam + coarse - 1) };
+                let at = VoxelCoord { face: key.face, lod: 0, i: i as u32, j: j as u32, h: far(h) as i32 };
+                let voxel = if world.source().voxel(at).unwrap().is_solid() { Voxel::AIR } else { Voxel::STONE };
+                edits.push(crate::Edit::Voxel { at, voxel });
+            }
+        }
+        let applied = world.apply(&edits).unwrap();
+        assert!(!applied.dirty.contains(&key), "the edit reached the fine chunk's own padding: it tests nothing");
+        streamer.set_voxels(world.voxels(), &applied.dirty).unwrap();
+        settle(&mut streamer);
+        let stale = stale_meshes(&streamer, &*world.voxels());
+        println!(
+            "{} voxels flipped across the seam of {key:?} ({lod_diff} LODs coarser across, {:.1} m per fine voxel): \
+             {stale} stale meshes",
+            edits.len(),
+            span as f64 * sphere.layer_height()
+        );
+        assert_eq!(stale, 0, "meshes that no longer match their voxels after the edit");
     }
 
     /// The small planet, whose chunks with an even `x` panic when filled
