@@ -677,7 +677,7 @@ mod streaming {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
     use nebula_lod::{Camera, LodSettings};
-    use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord, VoxelSource};
+    use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, VoxelSource};
 
     use super::unit;
     use crate::stream::{MeshHandle, Streamer};
@@ -1180,8 +1180,13 @@ mod streaming {
             for h in (bottom..bottom + size).step_by(coarse as usize) {
                 let far = |c: i64| (c / coarse + 1) * coarse - 1;
                 let (i, j) = if positive_x { (seam + coarse - 1, far(along)) } else { (far(along), seam + coarse - 1) };
-                let at = VoxelCoord { face: key.face, lod: 0, i: i as u32, j: j as u32, h: far(h) as i32 };
-                let voxel = if world.source().voxel(at).unwrap().is_solid() { Voxel::AIR } else { Voxel::STONE };
+                let at =
+                    nebula_voxel::VoxelCoord { face: key.face, lod: 0, i: i as u32, j: j as u32, h: far(h) as i32 };
+                let voxel = if world.source().voxel(at).unwrap().is_solid() {
+                    nebula_voxel::Voxel::AIR
+                } else {
+                    nebula_voxel::Voxel::STONE
+                };
                 edits.push(crate::Edit::Voxel { at, voxel });
             }
         }
