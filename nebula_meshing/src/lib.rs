@@ -16,7 +16,9 @@
 //! 4. [`constrain_edge_vertices`] for sides whose neighbour is coarser, by
 //!    any LOD difference;
 //! 5. [`generate_skirt`] on sides that meet another LOD, [`skirt_depth`] deep,
-//!    with normals locked to the surface;
+//!    with normals locked to the surface; or, with
+//!    [`MeshOptions::STITCHED`], no skirt: the seam closed by faces in the
+//!    shared boundary plane ([`stitch`]);
 //! 6. positions from `nebula_math`'s one canonical lattice → world function,
 //!    stored f32 relative to the chunk's f64 origin ([`MeshVertex`], 40
 //!    bytes).

@@ -1,4 +1,4 @@
-//! How a [`Streamer`](crate::Streamer) closes the seams between chunks of
+//! How a [`Streamer`](crate::stream::Streamer) closes the seams between chunks of
 //! different LOD: the seed documents' strategies, one switch.
 //!
 //! ```text

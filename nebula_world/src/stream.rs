@@ -11,11 +11,13 @@
 //!
 //! # What is drawn: every frame complete, never waiting for meshing
 //!
-//! Meshes are made with [`MeshOptions::STREAMING`]: they do not depend on
-//! their neighbours' LODs (skirts hang on every side, and their depth is
-//! chosen per side at draw time from the LODs actually drawn next to the
-//! chunk). So any chunk may be shown the moment its column is meshed, and a
-//! LOD change never waits for neighbours to be re-meshed. Each frame:
+//! By default ([`SeamStrategy::Skirts`]) meshes are made with
+//! [`MeshOptions::STREAMING`]: they do not depend on their neighbours' LODs
+//! (skirts hang on every side, and their depth is chosen per side at draw
+//! time from the LODs actually drawn next to the chunk). So any chunk may be
+//! shown the moment its column is meshed, and a LOD change never waits for
+//! neighbours to be re-meshed. The other strategies make meshes for the
+//! LODs around them and still never wait: see [`crate::seams`]. Each frame:
 //!
 //! ```text
 //!   for each visible leaf L of the LOD tree:
