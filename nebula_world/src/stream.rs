@@ -2053,7 +2053,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.min_surface_radius = min_radius;
         self.draw.max_lod_diff = max_lod_diff;
         let (drawn_relations, reseams) = if seams.meshes_for_neighbours() {
-            settle_seams(voxels, cache, &mut self.draw, &self.drawn_slots, &arounds, seams, options, &priority)
+            let slots = &self.drawn_slots;
+            settle_seams(voxels, cache, &mut self.draw, slots, &arounds, seams, options, &priority, &predicted)
         } else {
             (Vec::new(), Vec::new())
         };
@@ -2400,8 +2401,15 @@ fn drawn_across(
 /// ([`SeamStrategy`]): lowers fallback skirts on both sides of every seam
 /// with an unsettled column, as deep as the LODs drawn and meshed for
 /// there need (with stitches, no skirt elsewhere), counts the unsettled
-/// columns and returns the drawn relations of each drawn column and the
+/// columns and returns the relations to mesh each drawn column for and the
 /// jobs that mesh the unsettled chunks again.
+///
+/// A side with nothing drawn across (out of view) takes any mesh: what a
+/// mesh made for another LOD there leaves open faces the neighbour's
+/// column, whose ground the eye would have to look through to see it (and
+/// that column would then be in view). Meshing again for every column that
+/// reaches the edge of the view and back was most of the re-meshing in a
+/// flight.
 #[allow(clippy::too_many_arguments)]
 fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     voxels: &S,
@@ -2412,6 +2420,7 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     seams: SeamStrategy,
     options: DrawOptions,
     priority: &impl Fn(ChunkColumn) -> f64,
+    predicted: &impl Fn(ChunkColumn) -> SideRelations,
 ) -> (Vec<SideRelations>, Vec<Job>) {
     let max_lod = voxels.layout().max_lod();
     let cached = |index: usize| {
@@ -2426,22 +2435,34 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     let mut jobs = Vec::new();
     for (index, around) in arounds.iter().enumerate() {
         let column = draw.columns[index].0;
-        let relations = around.map(|across| match across {
+        let seen = around.map(|across| across != Across::Nothing);
+        let mut relations = around.map(|across| match across {
             Across::Drawn(other) if other.lod > column.lod => {
                 nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff: other.lod - column.lod }
             }
             Across::Finer(_) => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
             _ => nebula_lod::NeighborLodRelation::Same,
         });
+        if seen.contains(&false) {
+            let guess = predicted(column);
+            for side in (0..4).filter(|&side| !seen[side]) {
+                relations[side] = guess[side];
+            }
+        }
         let mut mask = 0u8;
         let mut coarsest = column.lod;
         for (layer, chunk) in cached(index).into_iter().flat_map(|c| c.chunks.iter()) {
             coarsest = coarsest.max(coarsest_made_for(column.lod, &chunk.made_for));
-            let wrong = (0..4).filter(|&s| chunk.made_for[s] != relations[s]).fold(0u8, |m, s| m | 1 << s);
+            let wrong = (0..4).filter(|&s| seen[s] && chunk.made_for[s] != relations[s]).fold(0u8, |m, s| m | 1 << s);
             if wrong != 0 {
                 mask |= wrong;
+                // Out of view, the mesh keeps what it was made for.
+                let mut wanted = relations;
+                for side in (0..4).filter(|&side| !seen[side]) {
+                    wanted[side] = chunk.made_for[side];
+                }
                 let key = column.chunk(layer);
-                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations });
+                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations: wanted });
             }
         }
         if mask != 0 {
