@@ -86,7 +86,8 @@ pub struct OutlineEdge {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum VertexSource {
     /// A lattice point of the chunk (local coordinates at the chunk's LOD,
-    /// each in `0..=32`) on a face looking towards `side`.
+    /// each in `0..=32`, or beyond for the far end of a coarse edge a
+    /// stitch zips) on a face looking towards `side`.
     Surface { local: [i32; 3], side: FaceDirection },
     /// The lower end of a skirt hanging from vertex `top`.
     Skirt { top: u32 },
@@ -247,7 +248,8 @@ impl ChunkMesh {
         }
     }
 
-    /// The local lattice coordinates (each in `0..=32`, at the chunk's LOD)
+    /// The local lattice coordinates (each in `0..=32`, at the chunk's LOD;
+    /// a stitch's zip may end beyond, `crate::stitch`)
     /// of surface vertex `index`; `None` for skirt and pushed vertices.
     #[must_use]
     pub fn local_lattice(&self, index: usize) -> Option<[i32; 3]> {
@@ -362,6 +364,14 @@ impl ChunkMesh {
         // Undirected lattice edge → (triangles using it, first directed edge).
         let mut uses: HashMap<LatticeEdge, (u32, (u32, u32))> = HashMap::new();
         for triangle in self.indices[..self.surface_index_count].chunks_exact(3) {
+            // A stitch's zip (three lattice points on one line, `crate::stitch`)
+            // covers no surface: its edges are not where the surface ends.
+            if let [Some(p), Some(q), Some(r)] = [0, 1, 2].map(|k| self.local(triangle[k] as usize)) {
+                let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
+                if u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0] {
+                    continue;
+                }
+            }
             for k in 0..3 {
                 let (a, b) = (triangle[k], triangle[(k + 1) % 3]);
                 let (Some(la), Some(lb)) = (self.local(a as usize), self.local(b as usize)) else { continue };

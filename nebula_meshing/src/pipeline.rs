@@ -28,8 +28,10 @@ pub struct MeshOptions {
     /// shared boundary plane (see [`crate::stitch`]), and leave the faces in
     /// that plane to the finer chunk on sides with a finer neighbour. Both
     /// chunks of a seam must be meshed for it (their meshes depend on the
-    /// relation); with `skirts` off no skirt is hung. Drawn without
-    /// geomorphing: the two sides of a seam morph towards different LODs.
+    /// relation); with `skirts` off no skirt is hung. Implies
+    /// `constrain_edges` and every lattice point on those sides a vertex.
+    /// Drawn without geomorphing: the two sides of a seam morph towards
+    /// different LODs.
     pub stitch: bool,
 }
 
@@ -121,7 +123,8 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
         // made for that LOD: both need every lattice point there. Meshes
         // for draw-time skirts alone must not depend on the neighbours'
         // LODs.
-        let dense_sides: Vec<FaceDirection> = if options.draw_time_skirts && !options.constrain_edges {
+        let dense_sides: Vec<FaceDirection> = if options.draw_time_skirts && !options.constrain_edges && !options.stitch
+        {
             Vec::new()
         } else {
             FaceDirection::HORIZONTAL
@@ -132,7 +135,8 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
         buffer.mesher.mesh_stitched(voxels, layout, &dense_sides, &stitched)?
     };
     for side in FaceDirection::HORIZONTAL {
-        if let (true, Some(lod_diff)) = (options.constrain_edges, context.coarser_neighbor_diff(side)) {
+        if let (true, Some(lod_diff)) = (options.constrain_edges || options.stitch, context.coarser_neighbor_diff(side))
+        {
             constrain_edge_vertices(&mut mesh, side, lod_diff)?;
         }
     }

@@ -47,8 +47,8 @@ pub(crate) struct StitchedSide {
     /// The side (horizontal).
     pub side: FaceDirection,
     /// `Some(d)`: the neighbour is `d` LODs coarser and this chunk makes
-    /// the faces in the boundary plane and the zips; `None`: it is finer
-    /// and makes them.
+    /// the faces in the boundary plane and the zips; `None`: the neighbour
+    /// is finer and makes them (this chunk makes none there).
     pub coarser_by: Option<u8>,
 }
 

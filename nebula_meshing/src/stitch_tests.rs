@@ -327,3 +327,35 @@ fn a_stitch_left_out_opens_the_seam() {
         assert!(stitched_seam_defects(&source, seam, StitchParts::ALL, false).open > 0, "{seam:?}");
     }
 }
+
+/// A stitch's zips cover no surface, so the outline a fallback skirt hangs
+/// from (the edges in the plane only one surface triangle uses) is the same
+/// with them and without: a zip over an outline edge must not hide it.
+#[test]
+fn zips_leave_the_outline_where_it_was() {
+    let mut zipped_outlines = 0;
+    for (seed, lod_diff, side) in [(3, 1, 0), (4, 2, 2), (5, 1, 1), (6, 3, 3), (7, 1, 2), (8, 2, 0)] {
+        let source = random_source(seed, 150);
+        let seam = seam(CubeFace::NegX, 0, lod_diff, FaceDirection::HORIZONTAL[side], seed % 2 == 0, seed as u32);
+        let relation = NeighborLodRelation::HigherThanNeighbor { lod_diff };
+        let options = MeshOptions { draw_time_skirts: true, skirts: true, ..MeshOptions::STITCHED };
+        let outline = |parts: StitchParts| {
+            let mut buffer = ChunkMeshBuffer::new();
+            buffer.mesher.stitch_parts = parts;
+            let mesh = mesh_chunk(&source, seam.fine, &context(0, seam.side, relation), options, &mut buffer).unwrap();
+            let mut edges: Vec<_> = mesh
+                .outline_edges(seam.side)
+                .into_iter()
+                .map(|(a, b)| (mesh.local(a as usize).unwrap(), mesh.local(b as usize).unwrap()))
+                .collect();
+            edges.sort_unstable();
+            (edges, mesh.triangle_count())
+        };
+        let (with, triangles_with) = outline(StitchParts::ALL);
+        let (without, triangles_without) = outline(StitchParts { zips: false, ..StitchParts::ALL });
+        assert!(triangles_with > triangles_without, "{seam:?}: no zip made");
+        assert_eq!(with, without, "{seam:?}");
+        zipped_outlines += usize::from(!with.is_empty());
+    }
+    assert!(zipped_outlines > 0, "no outline to compare");
+}

@@ -40,7 +40,7 @@ pub enum SeamStrategy {
     /// skirts where LODs differ.
     Constrained,
     /// Meshes made for their neighbours' LODs, seams stitched in the
-    /// boundary planes; no skirts and no geomorphing once settled.
+    /// boundary planes; no geomorphing, and no skirt once settled.
     Stitched,
 }
 

@@ -1420,12 +1420,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         Ok(())
     }
 
-    /// The chunks held whose stitches read voxels of `dirty` chunks: with
+    /// The chunks held or being meshed whose stitches read voxels of `dirty`
+    /// chunks: with
     /// [`SeamStrategy::Stitched`] a chunk next to a coarser column holds
     /// that column's voxels along the seam (`nebula_meshing::stitch`), up to
     /// a coarse voxel deep, which its own padding does not reach. Every held
-    /// chunk stitched to some coarser neighbour that lies under a same-LOD
-    /// neighbour of a dirty column (more than needed: edits are rare).
+    /// chunk stitched to some coarser neighbour, and every job running,
+    /// under a same-LOD neighbour of a dirty column (more than needed:
+    /// edits are rare).
     fn stitched_across(&self, dirty: &[ChunkKey]) -> Vec<ChunkKey> {
         if self.seams != SeamStrategy::Stitched || dirty.is_empty() {
             return Vec::new();
@@ -1449,14 +1451,23 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let stitched = |chunk: &LoadedChunk<H>| {
             chunk.made_for.iter().any(|r| matches!(r, nebula_lod::NeighborLodRelation::HigherThanNeighbor { .. }))
         };
-        self.cache
+        let mut keys: Vec<ChunkKey> = self
+            .cache
             .columns
             .iter()
             .filter(|(column, _)| under_beside(**column))
             .flat_map(|(column, cached)| {
                 cached.chunks.iter().filter(|(_, chunk)| stitched(chunk)).map(|(layer, _)| column.chunk(layer))
             })
-            .collect()
+            .collect();
+        // Jobs running now read the old voxels: their meshes are asked for
+        // again (`MeshCache::required`).
+        if let Ok(state) = self.meshing.state.lock() {
+            keys.extend(state.running.keys().filter(|key| under_beside(key.column())));
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        keys
     }
 
     /// Re-reads every held column's layers once the eye went down into
@@ -1495,7 +1506,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 
     /// Whether the view is final: nothing drawn in place of a visible leaf,
-    /// no job queued or running and nothing drawn from before an edit.
+    /// no job of the view queued or running (meshing a seam again for the
+    /// LODs drawn around it included, [`SeamStrategy`]) and nothing drawn
+    /// from before an edit. (A seam whose meshing keeps failing waits with
+    /// its fallback skirts: [`StreamFigures::unsettled`].)
     #[must_use]
     pub fn settled(&self) -> bool {
         self.lod_ok
@@ -2083,9 +2097,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 }
             }
         }
+        // Seams meshed again for the LODs drawn around them (an edited chunk
+        // among them is meshed for them by its edit's job, below: one job
+        // per chunk).
+        jobs.extend(reseams.into_iter().filter(|job| !cache.stale.contains_key(&job.key)));
         // Drawn chunks an edit changed go first: the player is looking at
         // them. One no longer drawn is dropped, to be meshed when needed.
-        jobs.extend(reseams);
         let undrawn: Vec<ChunkKey> = cache.stale.keys().filter(|key| !set.contains(&key.column())).copied().collect();
         for key in undrawn {
             cache.stale.remove(&key);
@@ -2404,12 +2421,11 @@ fn drawn_across(
 /// columns and returns the relations to mesh each drawn column for and the
 /// jobs that mesh the unsettled chunks again.
 ///
-/// A side with nothing drawn across (out of view) takes any mesh: what a
-/// mesh made for another LOD there leaves open faces the neighbour's
-/// column, whose ground the eye would have to look through to see it (and
-/// that column would then be in view). Meshing again for every column that
-/// reaches the edge of the view and back was most of the re-meshing in a
-/// flight.
+/// A side with nothing drawn across (out of view) takes any mesh: a mesh
+/// made for another LOD there leaves open only what faces the neighbour's
+/// column, and the eye would have to look through that column's ground to
+/// see it (which would put the column in view). So a column that reaches
+/// the edge of the view is not meshed again for it.
 #[allow(clippy::too_many_arguments)]
 fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     voxels: &S,
