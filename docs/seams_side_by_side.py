@@ -154,7 +154,7 @@ def main():
                    check=True, capture_output=True)
     print()
     print("| 300 m/s flight, 100 m up, 8 s at 10 fps | seams | crack px (all frames) | chunks median | "
-          "triangles median | skirt triangles median | unsettled median / max | meshed | step ms median |")
+          "triangles median | skirt triangles median | unsettled median / max | chunks meshed | step ms median |")
     print("|---|---|---|---|---|---|---|---|---|")
     for seams in STRATEGIES:
         report = os.path.join(out_dir, f"flight-{seams}.json")
@@ -164,7 +164,7 @@ def main():
         r = json.load(open(report))
         s, frames = r["summary"], r["frames"]
         cracks = sum(f["crack_pixels"] or 0 for f in frames)
-        meshed = "" if "chunks_meshed" not in r else f"{r['chunks_meshed']:,}"
+        meshed = f"{r['chunks_meshed']:,} ({r['chunks_remeshed_for_seams']:,} for seams)"
         print(f"| | {seams} | {cracks} in {len(frames)} frames | {s['chunks']['median']:,.0f} | "
               f"{s['triangles']['median']:,.0f} | {s['skirt_triangles']['median']:,.0f} | "
               f"{s['unsettled']['median']:.0f} / {s['unsettled']['max']:.0f} | {meshed} | "

@@ -284,6 +284,8 @@ impl FlightReport {
                 "upload_bytes": self.spread(|f| Some(f.figures.frame.times.upload_bytes as f64)),
             },
             "max_stand_in_levels": coarsest,
+            "chunks_meshed": self.frames.last().map(|f| f.figures.frame.times.chunks_meshed),
+            "chunks_remeshed_for_seams": self.frames.last().map(|f| f.figures.frame.times.chunks_remeshed),
             "frame_count": self.frames.len(),
             "worst_frame": worst,
             "frames": frames,

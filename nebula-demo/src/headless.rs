@@ -429,6 +429,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "chunk_draws": figures.render.chunk_draws,
         "gpu_ms": figures.render.gpu_ms,
         "chunks_meshed": f.times.chunks_meshed,
+        "chunks_remeshed_for_seams": f.times.chunks_remeshed,
         "mesh_errors": f.times.mesh_errors,
         "crack_pixels": figures.crack_pixels,
         "crack_pixels_sphere_rule": figures.cracks.sphere_cracks,

@@ -813,6 +813,9 @@ pub struct StageTimes {
     pub meshing_total_ms: f64,
     /// Chunks meshed since the start.
     pub chunks_meshed: usize,
+    /// Of which meshed again for the LODs drawn around them
+    /// ([`SeamStrategy`]; none with skirts).
+    pub chunks_remeshed: usize,
     /// Meshing errors since the start (each logged).
     pub mesh_errors: usize,
     /// Uploads of finished meshes this frame.
@@ -1748,7 +1751,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.times.upload_bytes = bytes;
         if let Ok(mut state) = self.meshing.state.lock() {
             for done in &results {
-                state.running.remove(&done.key);
+                if state.running.remove(&done.key) == Some(Tier::Reseam) {
+                    self.times.chunks_remeshed += 1;
+                }
             }
         }
         let mut meshing_ms = 0.0;
