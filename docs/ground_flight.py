@@ -64,4 +64,5 @@ def main():
     print(len(keys), "keyframes")
 
 
-main()
+if __name__ == "__main__":
+    main()

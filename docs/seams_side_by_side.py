@@ -14,36 +14,15 @@ heights are found with the demo's `pick` straight down.
 import json
 import math
 import os
-import struct
 import subprocess
 import sys
-import zlib
 
-RADIUS = 6371000.0  # the Earth preset's
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from contact_sheet import read_png  # noqa: E402
+from ground_flight import RADIUS, along, dot, ground_radius, norm  # noqa: E402
+
 SENTINEL = (255, 0, 255)
 STRATEGIES = ["skirts", "constrained", "stitched"]
-
-
-def norm(v):
-    length = math.sqrt(sum(c * c for c in v))
-    return [c / length for c in v]
-
-
-def along(a, b, s=1.0):
-    return [x + s * y for x, y in zip(a, b)]
-
-
-def dot(a, b):
-    return sum(x * y for x, y in zip(a, b))
-
-
-def ground(demo, direction):
-    """The radius of the ground under `direction` (the demo's pick)."""
-    top = ",".join(str(c * (RADIUS + 12000.0)) for c in direction)
-    out = subprocess.run([demo, "--planet", "earth", f"--camera-pos={top}", "--look-at=0,0,0", "pick"],
-                         capture_output=True, text=True, check=True).stdout
-    hit = json.loads(out)
-    return math.sqrt(dot(hit["point"], hit["point"])) if hit["hit"] else RADIUS
 
 
 def pose(demo, direction, height, heading, pitch_deg):
@@ -51,55 +30,20 @@ def pose(demo, direction, height, heading, pitch_deg):
     `heading` (made tangent) `pitch_deg` below the horizon."""
     up = norm(direction)
     heading = norm(along(heading, up, -dot(heading, up)))
-    eye = [c * (ground(demo, up) + height) for c in up]
+    eye = [c * (ground_radius(demo, up) + height) for c in up]
     p = math.radians(pitch_deg)
     look = along(eye, along([h * math.cos(p) for h in heading], up, -math.sin(p)), 1000.0)
     return eye, look
 
 
-def read_png(path):
-    """RGBA8 pixels of a non-interlaced PNG (what the demo writes)."""
-    data = open(path, "rb").read()
-    pos, idat, width, height = 8, b"", 0, 0
-    while pos < len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + length]
-        if kind == b"IHDR":
-            width, height = struct.unpack(">II", body[:8])
-        elif kind == b"IDAT":
-            idat += body
-        pos += 12 + length
-    raw, stride, bpp = zlib.decompress(idat), width * 4, 4
-    rows, prev, i = [], bytearray(stride), 0
-    for _ in range(height):
-        f, line = raw[i], bytearray(raw[i + 1:i + 1 + stride])
-        i += 1 + stride
-        for x in range(stride):
-            a = line[x - bpp] if x >= bpp else 0
-            b, c = prev[x], prev[x - bpp] if x >= bpp else 0
-            if f == 1:
-                line[x] = (line[x] + a) & 255
-            elif f == 2:
-                line[x] = (line[x] + b) & 255
-            elif f == 3:
-                line[x] = (line[x] + (a + b) // 2) & 255
-            elif f == 4:
-                pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
-                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(line)
-        prev = line
-    return width, height, rows
-
-
 def skirt_pixels(path):
     """Pixels of the skirts view's skirt colour (as the render tests count them)."""
-    width, _, rows = read_png(path)
+    width, height, rgb = read_png(path)
     count = 0
-    for line in rows:
-        for x in range(width):
-            r, g, b = line[4 * x], line[4 * x + 1], line[4 * x + 2]
-            if (r, g, b) != SENTINEL and r > 2 * g + 8 and b > 2 * g:
-                count += 1
+    for k in range(width * height):
+        r, g, b = rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]
+        if (r, g, b) != SENTINEL and r > 2 * g + 8 and b > 2 * g:
+            count += 1
     return count
 
 
@@ -171,4 +115,5 @@ def main():
               f"{s['step_ms']['median']:.1f} |")
 
 
-main()
+if __name__ == "__main__":
+    main()
