@@ -320,8 +320,12 @@ impl ChunkMesher {
     /// where its voxels on the two sides differ) to the vertices of this
     /// chunk strictly inside it: a fan of zero-area triangles from the
     /// edge's first end, in both windings (which way rounding opens the
-    /// sliver is not known), spliced into the surface ranges of the two
-    /// faces of the plane. On the chunk's own corner lines the neighbour's
+    /// sliver is not known), spliced into the range of the faces looking up:
+    /// a renderer leaves out the faces looking towards a side the eye is
+    /// behind (`ChunkDraw::hidden_sides`), and a zip's winding on screen is
+    /// rounding's, not its plane's (in the range of its plane's faces, one
+    /// winding was left out and the other seen from behind: a pinhole).
+    /// On the chunk's own corner lines the neighbour's
     /// voxels beyond are not at hand, so those edges are zipped wherever a
     /// vertex lies inside them.
     fn zip_coarse_edges(
@@ -408,7 +412,9 @@ impl ChunkMesher {
                             let next_points: Vec<[i32; 3]> = chain[1..].iter().copied().chain([point(end)]).collect();
                             for next in next_points {
                                 let next = self.any_vertex(next, facing, material, voxels, layout, mesh)?;
-                                extra[facing as usize].extend(if forward {
+                                // Both windings where no side culling drops
+                                // them: the radial faces' range.
+                                extra[FaceDirection::PosY as usize].extend(if forward {
                                     [first, previous, next]
                                 } else {
                                     [first, next, previous]

@@ -359,3 +359,41 @@ fn zips_leave_the_outline_where_it_was() {
     }
     assert!(zipped_outlines > 0, "no outline to compare");
 }
+
+/// A zip's winding on screen is rounding's, so both of its windings are
+/// drawn whichever sides' faces a renderer leaves out for looking away
+/// from the eye (`ChunkDraw::hidden_sides`): none is in a culled range.
+#[test]
+fn zips_are_drawn_whatever_sides_are_culled() {
+    let source = random_source(11, 140);
+    let mut zips = 0;
+    for (side, lod_diff) in [(0, 1), (1, 2), (2, 1), (3, 3)] {
+        let seam = seam(CubeFace::PosZ, 0, lod_diff, FaceDirection::HORIZONTAL[side], false, 5);
+        let relation = NeighborLodRelation::HigherThanNeighbor { lod_diff };
+        let mut buffer = ChunkMeshBuffer::new();
+        let mesh = mesh_chunk(&source, seam.fine, &context(0, seam.side, relation), MeshOptions::STITCHED, &mut buffer)
+            .unwrap();
+        let zip_starts: Vec<usize> = (0..mesh.indices().len())
+            .step_by(3)
+            .filter(|&start| {
+                let [p, q, r] = [0, 1, 2].map(|k| mesh.local_lattice(mesh.indices()[start + k] as usize).unwrap());
+                let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
+                u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0]
+            })
+            .collect();
+        zips += zip_starts.len();
+        // The sides a renderer culls are the horizontal ones (a column's
+        // walls; the faces looking up or down are always drawn).
+        for hidden_sides in 0..16u8 {
+            let draw = ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides };
+            let ranges: Vec<_> = drawn_ranges(&mesh.surface_side_ranges(), &mesh.skirt_index_ranges(), &draw).collect();
+            for &start in &zip_starts {
+                assert!(
+                    ranges.iter().any(|r| r.contains(&start)),
+                    "{seam:?}: a zip culled with sides {hidden_sides:#b}"
+                );
+            }
+        }
+    }
+    assert!(zips > 0, "no zip to check");
+}

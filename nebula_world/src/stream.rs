@@ -2073,7 +2073,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.draw.max_lod_diff = max_lod_diff;
         let (drawn_relations, reseams) = if seams.meshes_for_neighbours() {
             let slots = &self.drawn_slots;
-            settle_seams(voxels, cache, &mut self.draw, slots, &arounds, seams, options, &priority, &predicted)
+            settle_seams(voxels, cache, &mut self.draw, slots, &arounds, seams, options, &priority)
         } else {
             (Vec::new(), Vec::new())
         };
@@ -2426,11 +2426,10 @@ fn drawn_across(
 /// columns and returns the relations to mesh each drawn column for and the
 /// jobs that mesh the unsettled chunks again.
 ///
-/// A side with nothing drawn across (out of view) takes any mesh: a mesh
-/// made for another LOD there leaves open only what faces the neighbour's
-/// column, and the eye would have to look through that column's ground to
-/// see it (which would put the column in view). So a column that reaches
-/// the edge of the view is not meshed again for it.
+/// A side with nothing drawn across (out of view) wants a mesh made for
+/// the same LOD there: its own faces in the boundary plane. (Taking any
+/// mesh there left a chunk's wall open where it rose above a neighbour
+/// culled just under the frustum: a crack pixel after a turn.)
 #[allow(clippy::too_many_arguments)]
 fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     voxels: &S,
@@ -2441,7 +2440,6 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     seams: SeamStrategy,
     options: DrawOptions,
     priority: &impl Fn(ChunkColumn) -> f64,
-    predicted: &impl Fn(ChunkColumn) -> SideRelations,
 ) -> (Vec<SideRelations>, Vec<Job>) {
     let max_lod = voxels.layout().max_lod();
     let cached = |index: usize| {
@@ -2456,34 +2454,22 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     let mut jobs = Vec::new();
     for (index, around) in arounds.iter().enumerate() {
         let column = draw.columns[index].0;
-        let seen = around.map(|across| across != Across::Nothing);
-        let mut relations = around.map(|across| match across {
+        let relations = around.map(|across| match across {
             Across::Drawn(other) if other.lod > column.lod => {
                 nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff: other.lod - column.lod }
             }
             Across::Finer(_) => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
             _ => nebula_lod::NeighborLodRelation::Same,
         });
-        if seen.contains(&false) {
-            let guess = predicted(column);
-            for side in (0..4).filter(|&side| !seen[side]) {
-                relations[side] = guess[side];
-            }
-        }
         let mut mask = 0u8;
         let mut coarsest = column.lod;
         for (layer, chunk) in cached(index).into_iter().flat_map(|c| c.chunks.iter()) {
             coarsest = coarsest.max(coarsest_made_for(column.lod, &chunk.made_for));
-            let wrong = (0..4).filter(|&s| seen[s] && chunk.made_for[s] != relations[s]).fold(0u8, |m, s| m | 1 << s);
+            let wrong = (0..4).filter(|&s| chunk.made_for[s] != relations[s]).fold(0u8, |m, s| m | 1 << s);
             if wrong != 0 {
                 mask |= wrong;
-                // Out of view, the mesh keeps what it was made for.
-                let mut wanted = relations;
-                for side in (0..4).filter(|&side| !seen[side]) {
-                    wanted[side] = chunk.made_for[side];
-                }
                 let key = column.chunk(layer);
-                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations: wanted });
+                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations });
             }
         }
         if mask != 0 {

@@ -1204,6 +1204,60 @@ mod streaming {
         assert_eq!(stale, 0, "meshes that no longer match their voxels after the edit");
     }
 
+    #[test]
+    fn a_stitched_view_turned_to_draws_what_a_fresh_one_does() {
+        // Earth, 1 km over land: held until settled and prefetched, then
+        // turned 90 degrees and settled again. Every drawn chunk must be
+        // made for the LODs a fresh streamer settled on that view makes it
+        // for, with the same mesh: meshes made ahead (prefetching) for the
+        // LOD tree's relations, or kept for sides out of view, must not
+        // survive where they differ (a mesh kept for a side with nothing
+        // drawn across left a wall open above a neighbour culled just
+        // under the frustum: one crack pixel after the turn).
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
+        let eye = DVec3::new(6_219_094.0, 1_243_818.8, 621_909.4);
+        let up = eye.normalize();
+        let ahead = DVec3::new(-36.26, 93.18, -1.69);
+        let camera = |forward: DVec3| Camera { position: eye, forward, up, aspect: 1.6 };
+        let turned = camera(DVec3::new(-26.37, -5.28, 96.32));
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let settle = |streamer: &mut Streamer<ProceduralPlanet, Sized>, camera: Camera, prefetched: bool| {
+            for frames in 0.. {
+                streamer.update(camera, &mut { upload });
+                let done = streamer.settled() && streamer.figures().unsettled == 0;
+                if done && (!prefetched || streamer.prefetched()) {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                assert!(frames < 60_000, "did not settle");
+            }
+        };
+        let drawn = |streamer: &Streamer<ProceduralPlanet, Sized>| -> std::collections::BTreeMap<_, _> {
+            streamer
+                .drawn()
+                .map(|(key, chunk, draw)| {
+                    (key, (chunk.made_for, chunk.cpu.clone().unwrap_or_default(), draw.skirt_depths))
+                })
+                .collect()
+        };
+        let mut streamer = Streamer::new(planet.clone(), lod, camera(ahead), 2, &mut { upload }).unwrap();
+        streamer.keep_cpu_meshes(true);
+        streamer.set_seam_strategy(crate::seams::SeamStrategy::Stitched);
+        settle(&mut streamer, camera(ahead), true);
+        settle(&mut streamer, turned, false);
+        let mut fresh = Streamer::new(planet.clone(), lod, turned, 2, &mut { upload }).unwrap();
+        fresh.keep_cpu_meshes(true);
+        fresh.set_seam_strategy(crate::seams::SeamStrategy::Stitched);
+        settle(&mut fresh, turned, false);
+        let (after, expected) = (drawn(&streamer), drawn(&fresh));
+        let differ: Vec<_> =
+            expected.iter().filter(|(key, v)| after.get(key) != Some(v)).map(|(key, _)| *key).collect();
+        println!("turned: {} chunks drawn, {} differ from a fresh view", after.len(), differ.len());
+        assert_eq!(after.len(), expected.len(), "other chunks drawn");
+        assert!(differ.is_empty(), "drawn otherwise than a fresh view: {:?}", &differ[..differ.len().min(6)]);
+    }
+
     /// The small planet, whose chunks with an even `x` panic when filled
     /// while `panics` lasts (a game's voxel source with a bug).
     struct Flaky {
