@@ -1,7 +1,7 @@
 """The seam strategies side by side (`--seams skirts|constrained|stitched`)
 on the same Earth views and a low flight, 640x400, lavapipe is enough:
 
-    python3 docs/seams_side_by_side.py target/release/nebula-demo [OUT_DIR]
+    python3 docs/seams_side_by_side.py target/release/nebula-demo [OUT_DIR] [STRATEGY,...]
 
 Each view is rendered settled over a sentinel background (crack pixels,
 chunks, triangles, skirt triangles, settle time, chunks meshed, peak
@@ -57,6 +57,7 @@ def run(demo, args, out_dir, name):
 def main():
     demo = sys.argv[1]
     out_dir = sys.argv[2] if len(sys.argv) > 2 else "target/seams-side-by-side"
+    strategies = sys.argv[3].split(",") if len(sys.argv) > 3 else STRATEGIES
     os.makedirs(out_dir, exist_ok=True)
     land = norm([6219094.00, 1243818.80, 621909.40])
     east = norm([0.3, -1.0, 0.5])
@@ -75,7 +76,7 @@ def main():
         fov = "12" if name.startswith("12 deg") else "75" if name.startswith("cave") else "60"
         camera = [f"--camera-pos={','.join(f'{c:.2f}' for c in eye)}",
                   f"--look-at={','.join(f'{c:.2f}' for c in look)}", "--fov", fov]
-        for seams in STRATEGIES:
+        for seams in strategies:
             tag = f"{len(rows):02d}-{seams}"
             r = run(demo, [*camera, "--seams", seams, "--background", "255,0,255",
                            "--screenshot", os.path.join(out_dir, tag + ".png")], out_dir, tag)
@@ -100,7 +101,7 @@ def main():
     print("| 300 m/s flight, 100 m up, 8 s at 10 fps | seams | crack px (all frames) | chunks median | "
           "triangles median | skirt triangles median | unsettled median / max | chunks meshed | step ms median |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for seams in STRATEGIES:
+    for seams in strategies:
         report = os.path.join(out_dir, f"flight-{seams}.json")
         subprocess.run([demo, "--planet", "earth", "--headless", "--size", "640x400", "--flight", flight, "--fps",
                         "10", "--seams", seams, "--background", "255,0,255", "--report", report],
