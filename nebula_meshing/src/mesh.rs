@@ -366,11 +366,10 @@ impl ChunkMesh {
         for triangle in self.indices[..self.surface_index_count].chunks_exact(3) {
             // A stitch's zip (three lattice points on one line, `crate::stitch`)
             // covers no surface: its edges are not where the surface ends.
-            if let [Some(p), Some(q), Some(r)] = [0, 1, 2].map(|k| self.local(triangle[k] as usize)) {
-                let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
-                if u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0] {
-                    continue;
-                }
+            if let [Some(p), Some(q), Some(r)] = [0, 1, 2].map(|k| self.local(triangle[k] as usize))
+                && on_one_line(p, q, r)
+            {
+                continue;
             }
             for k in 0..3 {
                 let (a, b) = (triangle[k], triangle[(k + 1) % 3]);
@@ -496,6 +495,13 @@ impl ChunkMesh {
 
 /// Two local lattice points, smaller first.
 type LatticeEdge = ([i32; 3], [i32; 3]);
+
+/// Whether three lattice points lie on one line: a triangle of them covers
+/// nothing (a stitch's zip, `crate::stitch`).
+pub(crate) fn on_one_line(p: [i32; 3], q: [i32; 3], r: [i32; 3]) -> bool {
+    let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
+    u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0]
+}
 
 /// The lattice points strictly between `a` and `b`.
 pub(crate) fn lattice_points_inside(a: [i32; 3], b: [i32; 3]) -> impl Iterator<Item = [i32; 3]> {

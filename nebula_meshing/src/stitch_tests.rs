@@ -11,6 +11,7 @@ use nebula_voxel::{
 };
 use proptest::prelude::*;
 
+use crate::mesh::on_one_line;
 use crate::mesher::StitchParts;
 use crate::*;
 
@@ -377,8 +378,7 @@ fn zips_are_drawn_whatever_sides_are_culled() {
             .step_by(3)
             .filter(|&start| {
                 let [p, q, r] = [0, 1, 2].map(|k| mesh.local_lattice(mesh.indices()[start + k] as usize).unwrap());
-                let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
-                u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0]
+                on_one_line(p, q, r)
             })
             .collect();
         zips += zip_starts.len();
