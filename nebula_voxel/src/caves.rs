@@ -141,6 +141,30 @@ struct Network {
     heighten: f64,
 }
 
+/// A [`Network`]'s noises at one column: its swell and course, and its
+/// depth (asked for only where the column holds air).
+struct NetworkNoises<D> {
+    swell: f64,
+    course: f64,
+    depth: D,
+}
+
+/// A noise's sums at every direction of `directions` scaled by `scale`,
+/// each bit for bit [`Fractal::get`]'s: neighbouring columns lie in one
+/// lattice cell of these long wavelengths, and a batch hashes its corners
+/// once for the run.
+fn sums_at(fractal: &Fractal, scale: f64, directions: &[DVec3]) -> Vec<f64> {
+    let points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * scale).to_array()).collect();
+    let mut sums = vec![0.0; points.len()];
+    fractal.get_many(&points, &mut sums);
+    sums
+}
+
+/// How much a place's region noise lets caves in, in `[0, 1]` (0: none).
+fn region_weight(noise: f64) -> f64 {
+    smoothstep((noise - REGION_FROM) / REGION_RAMP)
+}
+
 /// The typical |∇n| of the course noise (2-octave fBm) along the sphere,
 /// per unit of noise space: sets the tunnel's width in noise units from its
 /// width in metres. (Its mean 3D gradient is 1.24, measured at 20,000
@@ -166,12 +190,22 @@ impl Network {
         (span - 1.0) / (2.0 * widest) < 1.0 && tallest - 0.5 * (span - 1.0) > 0.0
     }
 
-    /// This network's air over direction `d` for voxels `span` layers tall
-    /// (`region` in `[0, 1]`): `(near, span in 1/64 layer)`.
-    fn column(&self, d: DVec3, region: f64, span: f64) -> (bool, [i16; 2]) {
-        let swell = self.swell.get((d * self.swell_scale).to_array()).clamp(0.0, 1.0);
+    /// This network's noises at direction `d`, one point at a time.
+    fn noises_at(&self, d: DVec3) -> NetworkNoises<impl FnOnce() -> f64> {
+        NetworkNoises {
+            swell: self.swell.get((d * self.swell_scale).to_array()),
+            course: self.course.get((d * self.course_scale).to_array()),
+            depth: move || self.depth.get((d * self.depth_scale).to_array()),
+        }
+    }
+
+    /// This network's air over a column with these `noises`, for voxels
+    /// `span` layers tall (`region` in `[0, 1]`): `(near, span in 1/64
+    /// layer)`.
+    fn column(&self, noises: NetworkNoises<impl FnOnce() -> f64>, region: f64, span: f64) -> (bool, [i16; 2]) {
+        let swell = noises.swell.clamp(0.0, 1.0);
         let wide = (1.0 + self.widen * swell) * region;
-        let n = self.course.get((d * self.course_scale).to_array());
+        let n = noises.course;
         let e = n.abs() / (self.width * wide);
         if e >= 1.0 || wide <= 0.0 {
             return (false, [0, 0]);
@@ -181,7 +215,7 @@ impl Network {
         if e >= core || half <= 0.0 {
             return (true, [0, 0]);
         }
-        let centre = self.centre.0 + self.centre.1 * self.depth.get((d * self.depth_scale).to_array()).clamp(-1.0, 1.0);
+        let centre = self.centre.0 + self.centre.1 * (noises.depth)().clamp(-1.0, 1.0);
         let units = |depth: f64| (depth * SPAN_UNITS).round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
         (true, [units(centre - half), units(centre + half)])
     }
@@ -315,15 +349,43 @@ impl Caves {
         if self.networks.is_empty() {
             return caves;
         }
-        let region = self.region.get((d * self.region_scale).to_array());
-        let region = smoothstep((region - REGION_FROM) / REGION_RAMP);
+        let region = region_weight(self.region.get((d * self.region_scale).to_array()));
         if region <= 0.0 {
             return caves;
         }
         for (network, span_out) in self.networks.iter().zip(&mut caves.spans) {
-            let (near, air) = network.column(d, region, span);
+            let (near, air) = network.column(network.noises_at(d), region, span);
             caves.near |= near;
             *span_out = air;
+        }
+        caves
+    }
+
+    /// [`Self::column`] of every direction of `directions` (a chunk's
+    /// columns, neighbours next to each other), equal to it column for
+    /// column: each noise is summed over the run in one batch, whose
+    /// lattice cells neighbouring columns share, instead of hashing a
+    /// cell's corners for every column and noise (13 % of a meshing
+    /// thread's time in a 1 km/s flight).
+    pub(crate) fn columns(&self, directions: &[DVec3], span: f64) -> Vec<ColumnCaves> {
+        let mut caves = vec![ColumnCaves::NONE; directions.len()];
+        if self.networks.is_empty() {
+            return caves;
+        }
+        let regions = sums_at(&self.region, self.region_scale, directions);
+        let (open, regions): (Vec<usize>, Vec<f64>) =
+            regions.into_iter().map(region_weight).enumerate().filter(|&(_, region)| region > 0.0).unzip();
+        let open_directions: Vec<DVec3> = open.iter().map(|&k| directions[k]).collect();
+        for (n, network) in self.networks.iter().enumerate() {
+            let swells = sums_at(&network.swell, network.swell_scale, &open_directions);
+            let courses = sums_at(&network.course, network.course_scale, &open_directions);
+            let depths = sums_at(&network.depth, network.depth_scale, &open_directions);
+            for (j, &k) in open.iter().enumerate() {
+                let noises = NetworkNoises { swell: swells[j], course: courses[j], depth: || depths[j] };
+                let (near, air) = network.column(noises, regions[j], span);
+                caves[k].near |= near;
+                caves[k].spans[n] = air;
+            }
         }
         caves
     }
@@ -401,5 +463,60 @@ mod tests {
         assert!(matches!(Caves::new(f64::NAN, 1.0, 1.0, 3, 1, 0.0), Err(VoxelError::NonFinite { .. })));
         assert!(matches!(Caves::new(-1.0, 1.0, 1.0, 3, 1, 0.0), Err(VoxelError::OutOfRange { .. })));
         assert!(matches!(Caves::new(60.0, 6_371_000.0, 1.0, 18, 1, 0.0), Err(VoxelError::OutOfRange { .. })));
+    }
+
+    /// A patch of `side`² columns `step` radians apart around `centre`,
+    /// row by row (as a chunk's columns come).
+    fn patch(centre: DVec3, side: usize, step: f64) -> Vec<DVec3> {
+        let east = DVec3::Z.cross(centre).try_normalize().unwrap_or(DVec3::X);
+        let north = centre.cross(east);
+        let offset = |k: usize| (k as f64 - side as f64 / 2.0) * step;
+        (0..side * side).map(|k| (centre + east * offset(k % side) + north * offset(k / side)).normalize()).collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// A chunk's columns in one batch are each what one column alone
+        /// is, at LOD 0 and coarser, in cave regions and out of them.
+        #[test]
+        fn caves_of_a_run_of_columns_are_each_columns_own(
+            seed in 0u32..1000,
+            (x, y, z) in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            lod in 0u8..5,
+        ) {
+            let Some(centre) = DVec3::new(x, y, z).try_normalize() else { return Ok(()) };
+            let caves = Caves::new(5.0, 6_371_000.0, 1.0, 18, seed, 8.0).unwrap();
+            let span = f64::from(1u32 << lod);
+            // Columns `span` metres apart on an Earth, and a patch wide
+            // enough to meet a tunnel: look for one nearby first.
+            let near_a_tunnel = patch(centre, 48, 40.0 / 6_371_000.0)
+                .into_iter()
+                .find(|&d| caves.column(d, 1.0).near)
+                .unwrap_or(centre);
+            let directions = patch(near_a_tunnel, 24, span / 6_371_000.0);
+            let batch = caves.columns(&directions, span);
+            for (d, batched) in directions.iter().zip(batch) {
+                proptest::prop_assert_eq!(batched, caves.column(*d, span));
+            }
+        }
+    }
+
+    #[test]
+    fn the_batch_test_meets_tunnels() {
+        // The property above compares columns near tunnels, not only
+        // empty ones: most random places find one within its search.
+        let caves = Caves::new(5.0, 6_371_000.0, 1.0, 18, 7, 8.0).unwrap();
+        let found = (0..64)
+            .map(|k| {
+                let a = f64::from(k) * 2.399_963;
+                DVec3::new(a.cos(), a.sin(), (f64::from(k) / 32.0) - 1.0).normalize()
+            })
+            .filter(|&centre| {
+                let directions = patch(centre, 48, 40.0 / 6_371_000.0);
+                caves.columns(&directions, 1.0).iter().any(|c| c.near && c.spans != [[0; 2]; 2])
+            })
+            .count();
+        assert!(found >= 8, "only {found} of 64 places near a tunnel with air");
     }
 }

@@ -419,9 +419,9 @@ impl Fractal {
     /// The sums at `points` into `out` (the shorter length of the two;
     /// the rest of the longer is left alone), each bit for bit what
     /// [`Self::get`] gives: octave by octave over all points, each octave
-    /// through one [`Cell`]. (The planet steps its own batches,
-    /// [`Self::step`]; this is the whole sum, for tests.)
-    #[cfg(test)]
+    /// through one [`Cell`]. (The planet steps its heights' batches
+    /// itself, [`Self::step`], to stop each column early; this is the
+    /// whole sum.)
     pub fn get_many(&self, points: &[[f64; 3]], out: &mut [f64]) {
         let n = points.len().min(out.len());
         let mut batch = self.begin(&points[..n]);

@@ -648,7 +648,7 @@ impl ProceduralPlanet {
         let span = self.layout.voxel_span(lod) as f64;
         // The caves first: a column under a tunnel needs its exact height.
         let caves: Vec<ColumnCaves> = if self.caves.at_lod(lod) {
-            directions.iter().map(|d| self.caves.column(*d, span)).collect()
+            self.caves.columns(directions, span)
         } else {
             vec![ColumnCaves::NONE; directions.len()]
         };
