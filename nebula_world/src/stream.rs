@@ -1799,14 +1799,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // radius (`None` behind the horizon) where the leaf loop has them
         // at hand (`None`: looked up when the draw list is made).
         let mut drawn: Vec<(ChunkColumn, Option<KnownDraw>)> = Vec::new();
-        let mut wanted: Vec<ChunkColumn> = Vec::new();
+        // Columns to mesh, with their bounds where the leaf loop has them.
+        let mut wanted: Vec<(ChunkColumn, Option<&nebula_lod::NodeBounds>)> = Vec::new();
         // A job's priority: its column's projected voxel edge (largest
         // first: coarse-first and nearest-first), the same for both tiers.
         let k = tree.screen_space().k();
-        let priority = |column: ChunkColumn| {
-            let distance = tree.node_bounds(column).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
+        let priority_within = |column: ChunkColumn, bounds: Option<&nebula_lod::NodeBounds>| {
+            let distance = bounds.map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
             layout.voxel_edge(column.lod) * k / distance
         };
+        let priority = |column: ChunkColumn| priority_within(column, tree.node_bounds(column));
         // The LODs a new mesh is made for: the tree's around a leaf (what
         // will be drawn once the view settles), the same all round for a
         // stand-in; a drawn column's are checked against what is drawn.
@@ -1895,7 +1897,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 drawn.push((leaf, known));
                 continue;
             }
-            wanted.push(leaf);
+            wanted.push((leaf, (hidden == Hidden::No).then_some(bounds)));
             stand_ins += 1;
             if let Some(finer) = children(leaf)
                 && finer.iter().all(|&c| cache.ready(c))
@@ -1907,7 +1909,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             // wanted: the same for every sibling, so climbed once a frame
             // from their parent (thousands of leaves wait for meshes at
             // once in a fast flight).
-            let climb = |wanted: &mut Vec<ChunkColumn>| {
+            let climb = |wanted: &mut Vec<_>| {
                 let mut ancestor = leaf;
                 while ancestor.lod < max_lod {
                     let Some(up) = parent(ancestor) else { break };
@@ -1916,7 +1918,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                         return Some(ancestor);
                     }
                     if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
-                        wanted.push(ancestor);
+                        wanted.push((ancestor, None));
                     }
                 }
                 None
@@ -2042,11 +2044,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     // away asks the source (noise) once here. A coarse chunk
                     // drawn behind the horizon is left out: its voxels round
                     // the surface far down, and the terrain in front hides it.
-                    let low = tree
-                        .node_bounds(column)
+                    let bounds = tree.node_bounds(column);
+                    let low = bounds
                         .map(|b| b.min_radius)
                         .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                        .filter(|_| !behind(column));
+                        .filter(|_| !bounds.is_some_and(bounds_behind));
                     (slot, sides, low)
                 });
                 if let Some(low) = low {
@@ -2086,11 +2088,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // Jobs: every chunk of a wanted column not meshed and not running,
         // the largest projected voxel first.
         let mut jobs = Vec::new();
-        for column in wanted {
+        for (column, bounds) in wanted {
             if !seen.insert(column) {
                 continue;
             }
-            let priority = priority(column);
+            let priority = match bounds {
+                Some(bounds) => priority_within(column, Some(bounds)),
+                None => priority(column),
+            };
             let (_, entry) =
                 cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
             entry.last_used = frame;
