@@ -449,7 +449,9 @@ impl MeshUploader {
 
     /// The pending uploads. A panic while they were locked cannot have
     /// left a copy half recorded (each is recorded whole), so a poisoned
-    /// lock's state is taken as it is.
+    /// lock's state is taken as it is. (A panic closing a batch, wgpu's
+    /// default answer to a validation error, loses that batch's copies:
+    /// the device is in error then anyway.)
     fn uploads(&self) -> std::sync::MutexGuard<'_, Uploads> {
         self.uploads.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }

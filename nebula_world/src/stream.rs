@@ -2092,10 +2092,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if !seen.insert(column) {
                 continue;
             }
-            let priority = match bounds {
-                Some(bounds) => priority_within(column, Some(bounds)),
-                None => priority(column),
-            };
+            let priority = priority_within(column, bounds.or_else(|| tree.node_bounds(column)));
             let (_, entry) =
                 cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
             entry.last_used = frame;
