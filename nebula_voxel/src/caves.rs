@@ -141,13 +141,12 @@ struct Network {
     heighten: f64,
 }
 
-/// A [`Network`]'s noises at one column: its swell and course, and its
-/// depth (read only where the column holds air; a batch sums it for every
-/// column, one point at a time asks for it only then).
-struct NetworkNoises<D> {
+/// A [`Network`]'s noises at one column (the depth is read only where the
+/// column holds air).
+struct NetworkNoises {
     swell: f64,
     course: f64,
-    depth: D,
+    depth: f64,
 }
 
 /// A noise's sums at every direction of `directions` scaled by `scale`,
@@ -194,18 +193,18 @@ impl Network {
     }
 
     /// This network's noises at direction `d`, one point at a time.
-    fn noises_at(&self, d: DVec3) -> NetworkNoises<impl FnOnce() -> f64> {
+    fn noises_at(&self, d: DVec3) -> NetworkNoises {
         NetworkNoises {
             swell: self.swell.get((d * self.swell_scale).to_array()),
             course: self.course.get((d * self.course_scale).to_array()),
-            depth: move || self.depth.get((d * self.depth_scale).to_array()),
+            depth: self.depth.get((d * self.depth_scale).to_array()),
         }
     }
 
     /// This network's air over a column with these `noises`, for voxels
     /// `span` layers tall (`region` in `[0, 1]`): `(near, span in 1/64
     /// layer)`.
-    fn column(&self, noises: NetworkNoises<impl FnOnce() -> f64>, region: f64, span: f64) -> (bool, [i16; 2]) {
+    fn column(&self, noises: NetworkNoises, region: f64, span: f64) -> (bool, [i16; 2]) {
         let swell = noises.swell.clamp(0.0, 1.0);
         let wide = (1.0 + self.widen * swell) * region;
         let n = noises.course;
@@ -218,7 +217,7 @@ impl Network {
         if e >= core || half <= 0.0 {
             return (true, [0, 0]);
         }
-        let centre = self.centre.0 + self.centre.1 * (noises.depth)().clamp(-1.0, 1.0);
+        let centre = self.centre.0 + self.centre.1 * noises.depth.clamp(-1.0, 1.0);
         let units = |depth: f64| (depth * SPAN_UNITS).round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
         (true, [units(centre - half), units(centre + half)])
     }
@@ -383,7 +382,7 @@ impl Caves {
             let courses = sums_at(&network.course, network.course_scale, &open_directions);
             let depths = sums_at(&network.depth, network.depth_scale, &open_directions);
             for (j, &k) in open.iter().enumerate() {
-                let noises = NetworkNoises { swell: swells[j], course: courses[j], depth: || depths[j] };
+                let noises = NetworkNoises { swell: swells[j], course: courses[j], depth: depths[j] };
                 let (near, air) = network.column(noises, regions[j], span);
                 caves[k].near |= near;
                 caves[k].spans[n] = air;
