@@ -245,6 +245,8 @@ impl FlightReport {
                     "lod_ms": f.figures.frame.times.lod_ms,
                     "upload_ms": f.figures.frame.times.upload_ms,
                     "select_ms": f.figures.frame.times.select_ms,
+                    "plan_ms": f.figures.frame.times.plan_ms,
+                    "planned_ahead": f.figures.frame.times.planned_ahead,
                     "upload_bytes": f.figures.frame.times.upload_bytes,
                     "draw_ms": f.figures.draw_ms,
                     "encode_ms": f.figures.render.encode_ms,
@@ -263,6 +265,7 @@ impl FlightReport {
             "first_frame_ms": self.first_frame_ms,
             "peak_rss_bytes": crate::headless::peak_rss_bytes(),
             "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "missed": self.lod_thread_frames.1 },
+            "planned_ahead_frames": self.frames.iter().filter(|f| f.figures.frame.times.planned_ahead).count(),
             "summary": {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
                 // The whole frame on the frame thread, one at a time: its
@@ -274,6 +277,8 @@ impl FlightReport {
                 "lod_ms": self.spread(|f| Some(f.figures.frame.times.lod_ms)),
                 "upload_ms": self.spread(|f| Some(f.figures.frame.times.upload_ms)),
                 "select_ms": self.spread(|f| Some(f.figures.frame.times.select_ms)),
+                // Planning the selection, on the LOD thread when made ahead.
+                "plan_ms": self.spread(|f| Some(f.figures.frame.times.plan_ms)),
                 "encode_ms": self.spread(|f| Some(f.figures.render.encode_ms)),
                 "gpu_ms": self.spread(|f| f.figures.render.gpu_ms),
                 "draw_calls": self.spread(|f| Some(f64::from(f.figures.render.draw_calls))),

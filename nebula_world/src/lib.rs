@@ -20,11 +20,12 @@
 //! - **Streaming** ([`stream`]): a [`stream::Streamer`] decides what to
 //!   mesh, draw and free for a moving camera, for any renderer (it uploads
 //!   through a function the game gives it); [`ecs`] wraps it as bevy_ecs
-//!   resources and a system. The LOD tree's update and cull are made ahead
-//!   on a thread of their own, for the camera the last frames' motion
-//!   predicts with a margin around it; the frame thread takes that tree
-//!   when the margin covers the camera that came (a cull narrowed to it),
-//!   and updates its own when not (a jump, a sharp turn).
+//!   resources and a system. The LOD tree's update and cull, and the
+//!   selection of what to draw and mesh, are made ahead on a thread of
+//!   their own while the game draws the frame before, for the camera the
+//!   last frames' motion predicts with a margin around it; the frame thread
+//!   takes them when the margin covers the camera that came, and makes its
+//!   own when not (a jump, a sharp turn).
 //! - **Walking** ([`walk`]): bodies are upright boxes in the local
 //!   east/north/up frame, moved axis by axis against the solid voxels'
 //!   boxes in that frame, as block games do.
@@ -60,6 +61,7 @@ pub mod ecs;
 mod error;
 mod lod_thread;
 pub mod seams;
+mod select;
 mod store;
 pub mod stream;
 pub mod walk;

@@ -1,27 +1,80 @@
-//! The LOD tree's update and cull, made ahead on a thread of their own for
-//! where the camera is going, so that the frame thread only takes the
-//! result.
+//! The LOD tree's update and cull and the frame's selection, made ahead on
+//! a thread of their own for where the camera is going, so that the frame
+//! thread only takes the result.
 //!
-//! Each frame the streamer asks for the tree of the camera it predicts for
-//! the next frame, culled with a margin ([`CullMargin`]) around it. The
-//! thread keeps a tree of its own, updates it, culls it and sends back a
-//! copy; the next frame takes that copy in place of its own tree when the
-//! margin covers the camera that came ([`LodTree::cull_covers`]), and else
-//! updates and culls its own tree itself, as it always did. What changes a
-//! tree besides the camera (an edit's bounds, a new view, a tree started
-//! again) is done to both, in the same order: a copy made before the
-//! thread saw all of them is not taken.
+//! At the end of each update the streamer asks for the tree of the camera
+//! it predicts for the next frame, culled with a margin ([`CullMargin`])
+//! around it, and for the selection planned on it ([`crate::select`]). The
+//! thread keeps a tree of its own, updates it, culls it, plans the
+//! selection from the cached columns (shared read only meanwhile: the game
+//! draws the frame from them) and sends back a copy of the tree with the
+//! plan; the next update takes both when the margin covers the camera that
+//! came ([`LodTree::cull_covers`]), and else updates and culls its own tree
+//! and plans itself, as it always did. What changes a tree besides the
+//! camera (an edit's bounds, a new view, a tree started again) is done to
+//! both, in the same order: a copy made before the thread saw all of them
+//! is not taken.
 
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
 
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
+
 use nebula_lod::{Camera, CullMargin, LodTree};
-use nebula_voxel::{ChunkColumn, VoxelSource};
+use nebula_voxel::{ChunkColumn, ChunkKey, VoxelSource};
+
+use crate::select::{Plan, SelectInput, SelectSettings, Selection, plan};
+use crate::stream::{ColumnStore, Failure, MeshHandle};
+
+/// The LOD thread's priority, on `thread-priority`'s cross-platform scale
+/// (as [`MESHING_THREAD_PRIORITY`](crate::stream::MESHING_THREAD_PRIORITY)):
+/// niceness 4 on Linux, under the frame thread and meshing. Measured on the
+/// 2-core machine (lavapipe drawing on the same cores), the 1 km/s land
+/// flight at 640x400, three runs each: the step's 95th percentile 5.8-7.0
+/// ms at niceness 1 (a woken plan took the frame thread's core: the step's
+/// wall time 4-10 ms over its CPU time in a fifth of the frames), 4.9-5.9
+/// ms here (the plan 12-21 ms median, made while the frame draws); at
+/// niceness 7 the plan (64 ms) was not ready when the next update came
+/// (95th percentile 55 ms).
+pub(crate) const LOD_THREAD_PRIORITY: u8 = 33;
+
+/// Puts the calling thread (the LOD thread) below the frame thread, which
+/// wakes it with each request, and below meshing (see
+/// [`LOD_THREAD_PRIORITY`]); on Linux with batch scheduling too (a woken
+/// batch thread does not preempt the running one), elsewhere the lower
+/// priority alone.
+fn lower_priority() {
+    let Ok(value) = thread_priority::ThreadPriorityValue::try_from(LOD_THREAD_PRIORITY) else { return };
+    let priority = thread_priority::ThreadPriority::Crossplatform(value);
+    #[cfg(target_os = "linux")]
+    {
+        use thread_priority::{NormalThreadSchedulePolicy, ThreadSchedulePolicy};
+        let batch = ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Batch);
+        if thread_priority::set_thread_priority_and_policy(thread_priority::thread_native_id(), priority, batch).is_ok()
+        {
+            return;
+        }
+    }
+    let _ = priority.set_for_current();
+}
+
+/// What the LOD thread needs to plan a frame's selection on its tree: the
+/// selection's state (moved there and back), the cached columns (shared
+/// read only until the plan is sent) and a copy of what else it reads.
+pub(crate) struct SelectRequest<H> {
+    pub(crate) selection: Box<Selection>,
+    pub(crate) columns: Arc<ColumnStore<H>>,
+    pub(crate) stale: HashMap<ChunkKey, u64>,
+    pub(crate) gained: HashSet<ChunkKey>,
+    pub(crate) failed: HashMap<ChunkKey, Failure>,
+    pub(crate) settings: SelectSettings,
+}
 
 /// What the frame thread asks of the LOD thread, in order.
-enum Request<S> {
-    /// Update and cull the tree for `camera` with `margin`, and send a copy.
-    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin },
+enum Request<S, H> {
+    /// Update and cull the tree for `camera` with `margin`, plan the
+    /// selection on it if asked, and send a copy and the plan.
+    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin, select: Option<Box<SelectRequest<H>>> },
     /// Re-read the bounds of edited columns.
     Refresh { voxels: Arc<S>, columns: Vec<ChunkColumn> },
     /// A new threshold, screen height or field of view.
@@ -31,20 +84,26 @@ enum Request<S> {
 }
 
 /// What the LOD thread sends back for an update.
-pub(crate) enum Outcome {
-    /// The tree updated and culled for the asked camera, after `commands`
-    /// tree-changing requests; `changed`: its leaves changed.
-    Tree { tree: Box<LodTree>, changed: bool, commands: u64 },
-    /// The update failed (a refused camera, a failing voxel source); the
-    /// frame thread updates its own tree and reports what it finds.
-    Failed,
+pub(crate) struct Outcome<H> {
+    /// The tree updated and culled for the asked camera, and whether its
+    /// leaves changed; `None`: the update failed (a refused camera, a
+    /// failing voxel source), and the frame thread updates its own tree
+    /// and reports what it finds.
+    pub(crate) tree: Option<(Box<LodTree>, bool)>,
+    /// Tree-changing requests applied before the update.
+    commands: u64,
+    /// The selection's state sent with the request, if any.
+    pub(crate) selection: Option<Box<Selection>>,
+    /// The selection planned on the tree, if asked (and the update and the
+    /// plan went through).
+    pub(crate) plan: Option<Plan<H>>,
 }
 
 /// The frame thread's end of the LOD thread.
-pub(crate) struct LodThread<S> {
-    requests: Sender<(Request<S>, u64)>,
+pub(crate) struct LodThread<S, H> {
+    requests: Sender<(Request<S, H>, u64)>,
     /// Behind a lock only so that the streamer is `Sync` (an ECS resource).
-    outcomes: Mutex<Receiver<Outcome>>,
+    outcomes: Mutex<Receiver<Outcome<H>>>,
     /// Tree-changing requests sent so far.
     commands: u64,
     /// An update asked for whose outcome has not come.
@@ -54,49 +113,55 @@ pub(crate) struct LodThread<S> {
     asked: Option<(Camera, u64)>,
 }
 
-impl<S: VoxelSource + Send + Sync + 'static> LodThread<S> {
+impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
     /// Starts the thread with a copy of `tree`.
     pub(crate) fn start(tree: &LodTree) -> std::io::Result<Self> {
-        let (requests, inbox) = channel::<(Request<S>, u64)>();
+        let (requests, inbox) = channel::<(Request<S, H>, u64)>();
         let (outbox, outcomes) = channel();
         let tree = tree.clone();
-        std::thread::Builder::new().name("nebula-lod".into()).spawn(move || serve(tree, &inbox, &outbox))?;
+        std::thread::Builder::new().name("nebula-lod".into()).spawn(move || {
+            lower_priority();
+            serve(tree, &inbox, &outbox);
+        })?;
         Ok(Self { requests, outcomes: Mutex::new(outcomes), commands: 0, in_flight: false, asked: None })
     }
 
-    /// Asks for the tree of `camera`, culled with `margin` (unless the
-    /// last request was the same camera with nothing changed since).
-    pub(crate) fn ask(&mut self, voxels: &Arc<S>, camera: Camera, margin: CullMargin) {
-        if self.asked == Some((camera, self.commands)) && !self.in_flight {
+    /// Asks for the tree of `camera`, culled with `margin`, and for the
+    /// selection planned on it if `select` (without one, nothing is asked
+    /// when the last request was the same camera with nothing changed
+    /// since).
+    pub(crate) fn ask(
+        &mut self,
+        voxels: &Arc<S>,
+        camera: Camera,
+        margin: CullMargin,
+        select: Option<SelectRequest<H>>,
+    ) {
+        if select.is_none() && self.asked == Some((camera, self.commands)) && !self.in_flight {
             return;
         }
-        let request = Request::Update { voxels: voxels.clone(), camera, margin };
+        let request = Request::Update { voxels: voxels.clone(), camera, margin, select: select.map(Box::new) };
         if self.requests.send((request, self.commands)).is_ok() {
             self.in_flight = true;
             self.asked = Some((camera, self.commands));
         }
     }
 
-    /// Whether an update was asked for and its outcome not taken.
-    pub(crate) fn in_flight(&self) -> bool {
-        self.in_flight
-    }
-
     /// The outcome of the update asked for, waiting for it if it has not
-    /// come; `None` when none was asked for, or the copy predates a
-    /// tree-changing request.
-    pub(crate) fn take(&mut self) -> Option<Outcome> {
+    /// come; `None` when none was asked for (or the thread is gone: it
+    /// cannot panic, updates and plans are caught).
+    pub(crate) fn take(&mut self) -> Option<Outcome<H>> {
         if !self.in_flight {
             return None;
         }
         self.in_flight = false;
-        let outcome = self.outcomes.get_mut().map(|outcomes| outcomes.recv());
-        match outcome {
-            Ok(Ok(Outcome::Tree { commands, .. })) if commands != self.commands => None,
-            Ok(Ok(outcome)) => Some(outcome),
-            // The thread is gone (it cannot panic: updates are caught).
-            _ => None,
-        }
+        self.outcomes.get_mut().ok()?.recv().ok()
+    }
+
+    /// Whether `outcome` was made after every tree-changing request sent
+    /// so far: its tree (and plan) may be taken.
+    pub(crate) fn is_current(&self, outcome: &Outcome<H>) -> bool {
+        outcome.commands == self.commands
     }
 
     /// Re-reads the bounds of `columns` in the thread's tree too.
@@ -114,7 +179,7 @@ impl<S: VoxelSource + Send + Sync + 'static> LodThread<S> {
         self.command(Request::Replace(Box::new(tree.clone())));
     }
 
-    fn command(&mut self, request: Request<S>) {
+    fn command(&mut self, request: Request<S, H>) {
         self.commands += 1;
         // A closed channel (the thread gone) leaves the frame thread to
         // update its own tree, as without one.
@@ -122,12 +187,26 @@ impl<S: VoxelSource + Send + Sync + 'static> LodThread<S> {
     }
 }
 
+impl<S, H> Drop for LodThread<S, H> {
+    /// Waits for an update in flight: the thread holds the cached columns
+    /// while it plans, and nothing the streamer uploaded may outlive it (a
+    /// game drops its renderer after it).
+    fn drop(&mut self) {
+        if self.in_flight
+            && let Ok(outcomes) = self.outcomes.get_mut()
+        {
+            drop(outcomes.recv());
+        }
+    }
+}
+
 /// The thread: takes every request waiting, applies the tree-changing ones
-/// in order, then updates for the newest camera asked for.
-fn serve<S: VoxelSource + Send + Sync + 'static>(
+/// in order, then updates for the newest camera asked for (and plans on
+/// it, if asked).
+fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
     mut tree: LodTree,
-    inbox: &Receiver<(Request<S>, u64)>,
-    outbox: &Sender<Outcome>,
+    inbox: &Receiver<(Request<S, H>, u64)>,
+    outbox: &Sender<Outcome<H>>,
 ) {
     let mut commands = 0;
     while let Ok(first) = inbox.recv() {
@@ -136,8 +215,8 @@ fn serve<S: VoxelSource + Send + Sync + 'static>(
         let mut update = None;
         for (request, sequence) in std::iter::once(first).chain(inbox.try_iter()) {
             match request {
-                Request::Update { voxels, camera, margin } => {
-                    update = Some((voxels, camera, margin));
+                Request::Update { voxels, camera, margin, select } => {
+                    update = Some((voxels, camera, margin, select));
                 }
                 Request::Refresh { voxels, columns } => {
                     commands = sequence;
@@ -155,7 +234,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static>(
                 }
             }
         }
-        let Some((voxels, camera, margin)) = update else { continue };
+        let Some((voxels, camera, margin, select)) = update else { continue };
         let updated = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             let changes = tree.update(&*voxels, &camera)?;
             tree.cull_with_margin(&camera, margin)?;
@@ -163,9 +242,9 @@ fn serve<S: VoxelSource + Send + Sync + 'static>(
                 !(changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty()),
             )
         }));
-        let outcome = match updated {
-            Ok(Ok(changed)) => Outcome::Tree { tree: Box::new(tree.clone()), changed, commands },
-            Ok(Err(_)) => Outcome::Failed,
+        let changed = match updated {
+            Ok(Ok(changed)) => Some(changed),
+            Ok(Err(_)) => None,
             Err(_) => {
                 // The tree may be part-way through a change: start again
                 // from the roots, as the frame thread would (which reports
@@ -177,9 +256,36 @@ fn serve<S: VoxelSource + Send + Sync + 'static>(
                 {
                     tree = fresh;
                 }
-                Outcome::Failed
+                None
             }
         };
+        let (selection, plan) = match select {
+            Some(request) => {
+                let SelectRequest { mut selection, columns, stale, gained, failed, settings } = *request;
+                // A panic in the voxel source while planning leaves the
+                // plan to the frame thread, which reports it.
+                selection.tree_changed |= changed == Some(true);
+                let planned = changed.and_then(|_| {
+                    let input = SelectInput {
+                        voxels: &*voxels,
+                        tree: &tree,
+                        columns: &columns,
+                        stale: &stale,
+                        gained: &gained,
+                        failed: &failed,
+                        settings,
+                    };
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok()
+                });
+                // Let go of the columns before the frame thread can have
+                // the plan: it changes them as soon as it does.
+                drop(columns);
+                (Some(selection), planned)
+            }
+            None => (None, None),
+        };
+        let outcome =
+            Outcome { tree: changed.map(|changed| (Box::new(tree.clone()), changed)), commands, selection, plan };
         if outbox.send(outcome).is_err() {
             return;
         }

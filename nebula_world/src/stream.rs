@@ -76,16 +76,17 @@ use std::time::Instant;
 // thread's time in a streaming view (keys are not attacker controlled).
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, children, parent};
+use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, parent};
 use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
 };
 use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, LayerView, VoxelSource};
 
-use crate::lod_thread::{LodThread, Outcome};
+use crate::lod_thread::{LodThread, Outcome, SelectRequest};
 use crate::panic_text;
-use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context, side_relations};
+use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
+use crate::select::{Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent};
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
 /// mesh (the streamer drops the handles of the meshes it frees).
@@ -215,7 +216,7 @@ impl Held {
 /// tree's node when the tree holds one (asked of the source when the node
 /// was made, on the LOD thread: no noise on the frame thread), else from
 /// the source.
-fn column_layers<S: VoxelSource + ?Sized>(
+pub(crate) fn column_layers<S: VoxelSource + ?Sized>(
     voxels: &S,
     tree: &LodTree,
     column: ChunkColumn,
@@ -228,14 +229,14 @@ fn column_layers<S: VoxelSource + ?Sized>(
 }
 
 /// The meshes of one chunk column (all its radial layers).
-struct CachedColumn<H> {
-    column: ChunkColumn,
+pub(crate) struct CachedColumn<H> {
+    pub(crate) column: ChunkColumn,
     /// The radial layers that hold surface (a failed bounds query: none).
-    layers: Vec<i32>,
+    pub(crate) layers: Vec<i32>,
     /// Its meshes: changed only through the cache ([`MeshCache::insert`],
     /// [`MeshCache::remove`], ...), which keeps `held` and the cache's
     /// total with them.
-    chunks: LayerMeshes<H>,
+    pub(crate) chunks: LayerMeshes<H>,
     /// Layers without a mesh, kept with `layers` and `chunks` (the
     /// readiness check of every drawn column, every frame, reads this
     /// alone).
@@ -244,12 +245,12 @@ struct CachedColumn<H> {
     /// Frame it was last drawn or wanted in.
     last_used: u64,
     /// Its wall planes and neighbours ([`ColumnSides`]).
-    sides: ColumnSides,
+    pub(crate) sides: ColumnSides,
 }
 
 impl<H: MeshHandle> CachedColumn<H> {
     /// A column with no meshes yet, its layers [`column_layers`].
-    fn new<S: VoxelSource + ?Sized>(
+    pub(crate) fn new<S: VoxelSource + ?Sized>(
         voxels: &S,
         tree: &LodTree,
         column: ChunkColumn,
@@ -271,7 +272,7 @@ impl<H: MeshHandle> CachedColumn<H> {
     /// Every layer meshed, or awaited after an edit that added it to a
     /// column on screen (`stale`): the column's other meshes stand for it
     /// until it comes, as an edited chunk's old mesh does.
-    fn ready(&self, column: ChunkColumn, stale: &HashMap<ChunkKey, u64>) -> bool {
+    pub(crate) fn ready(&self, column: ChunkColumn, stale: &HashMap<ChunkKey, u64>) -> bool {
         self.missing == 0
             || (!stale.is_empty()
                 && self
@@ -290,7 +291,7 @@ impl<H: MeshHandle> CachedColumn<H> {
 /// A column's meshes by radial layer: a handful at most, so a short list
 /// sorted by layer (a hash map per column cost a pointer chase and a hash
 /// on every readiness check of every drawn column, every frame).
-struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>);
+pub(crate) struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>);
 
 impl<H> Default for LayerMeshes<H> {
     fn default() -> Self {
@@ -299,7 +300,7 @@ impl<H> Default for LayerMeshes<H> {
 }
 
 impl<H> LayerMeshes<H> {
-    fn contains(&self, layer: i32) -> bool {
+    pub(crate) fn contains(&self, layer: i32) -> bool {
         self.0.iter().any(|(l, _)| *l == layer)
     }
 
@@ -333,7 +334,7 @@ impl<H> LayerMeshes<H> {
 /// (a hash map holding the columns themselves was tens of megabytes of
 /// buckets, a miss in memory for every lookup of every drawn column; the
 /// draw list keeps each drawn column's slot and walks them without one).
-struct ColumnStore<H> {
+pub(crate) struct ColumnStore<H> {
     slots: HashMap<ChunkColumn, usize>,
     columns: slab::Slab<CachedColumn<H>>,
 }
@@ -345,7 +346,7 @@ impl<H> Default for ColumnStore<H> {
 }
 
 impl<H> ColumnStore<H> {
-    fn get(&self, column: &ChunkColumn) -> Option<&CachedColumn<H>> {
+    pub(crate) fn get(&self, column: &ChunkColumn) -> Option<&CachedColumn<H>> {
         self.slots.get(column).map(|&slot| &self.columns[slot])
     }
 
@@ -354,14 +355,25 @@ impl<H> ColumnStore<H> {
     }
 
     /// The column's slot and meshes.
+    pub(crate) fn slot(&self, column: &ChunkColumn) -> Option<(usize, &CachedColumn<H>)> {
+        let slot = *self.slots.get(column)?;
+        Some((slot, &self.columns[slot]))
+    }
+
+    /// The column's slot and meshes, to change.
     fn slot_mut(&mut self, column: &ChunkColumn) -> Option<(usize, &mut CachedColumn<H>)> {
         let slot = *self.slots.get(column)?;
         Some((slot, &mut self.columns[slot]))
     }
 
     /// The column in `slot`, if it is still `column`.
-    fn in_slot(&self, slot: usize, column: ChunkColumn) -> Option<&CachedColumn<H>> {
+    pub(crate) fn in_slot(&self, slot: usize, column: ChunkColumn) -> Option<&CachedColumn<H>> {
         self.columns.get(slot).filter(|cached| cached.column == column)
+    }
+
+    /// The same, to change.
+    fn in_slot_mut(&mut self, slot: usize, column: ChunkColumn) -> Option<&mut CachedColumn<H>> {
+        self.columns.get_mut(slot).filter(|cached| cached.column == column)
     }
 
     /// The column's slot and meshes, made by `new` if it has none.
@@ -396,7 +408,10 @@ impl<H> ColumnStore<H> {
 
 /// Every chunk mesh held, by column, and the budget it is held to.
 pub struct MeshCache<H> {
-    columns: ColumnStore<H>,
+    /// Shared with the LOD thread, read only, while it plans the next
+    /// frame (between updates, while the game draws): the streamer takes
+    /// the plan back before it changes them ([`MeshCache::columns_mut`]).
+    columns: Arc<ColumnStore<H>>,
     /// The sum of the columns' `held`.
     held: Held,
     /// Keep a CPU copy of each mesh.
@@ -448,8 +463,9 @@ impl<H: MeshHandle> MeshCache<H> {
         512 << 20
     }
 
-    fn ready(&self, column: ChunkColumn) -> bool {
-        self.columns.get(&column).is_some_and(|c| c.ready(column, &self.stale))
+    /// The cached columns, to change ([`unshared`]).
+    fn columns_mut(&mut self) -> &mut ColumnStore<H> {
+        unshared(&mut self.columns)
     }
 
     /// Whether the mesh of `key` is held.
@@ -486,7 +502,7 @@ impl<H: MeshHandle> MeshCache<H> {
     /// Holds `chunk` as layer `layer` of `column` (a column already in the
     /// cache), in place of any mesh it had.
     fn insert(&mut self, column: ChunkColumn, layer: i32, chunk: LoadedChunk<H>) {
-        let Some(cached) = self.columns.get_mut(&column) else { return };
+        let Some(cached) = unshared(&mut self.columns).get_mut(&column) else { return };
         let held = chunk.held();
         if let Some(old) = cached.chunks.insert(layer, chunk) {
             cached.held.sub(old.held());
@@ -499,7 +515,7 @@ impl<H: MeshHandle> MeshCache<H> {
 
     /// Drops the mesh of `key`, if held.
     fn remove(&mut self, key: ChunkKey) {
-        let Some(cached) = self.columns.get_mut(&key.column()) else { return };
+        let Some(cached) = unshared(&mut self.columns).get_mut(&key.column()) else { return };
         if let Some(old) = cached.chunks.remove(key.layer) {
             cached.held.sub(old.held());
             self.held.sub(old.held());
@@ -523,7 +539,7 @@ impl<H: MeshHandle> MeshCache<H> {
 
     /// Keeps only the meshes of `column` whose layer `keep` accepts.
     fn retain_layers(&mut self, column: ChunkColumn, mut keep: impl FnMut(i32) -> bool) {
-        let Some(cached) = self.columns.get_mut(&column) else { return };
+        let Some(cached) = unshared(&mut self.columns).get_mut(&column) else { return };
         let mut dropped = Held::default();
         cached.chunks.retain(|layer, chunk| {
             let kept = keep(layer);
@@ -540,7 +556,7 @@ impl<H: MeshHandle> MeshCache<H> {
     /// Keeps only the columns `keep` accepts.
     fn retain_columns(&mut self, mut keep: impl FnMut(&ChunkColumn, &CachedColumn<H>) -> bool) {
         let mut dropped = Held::default();
-        self.columns.retain(|column, cached| {
+        unshared(&mut self.columns).retain(|column, cached| {
             let kept = keep(column, cached);
             if !kept {
                 dropped.add(cached.held);
@@ -552,7 +568,7 @@ impl<H: MeshHandle> MeshCache<H> {
 
     /// Drops `column` and its meshes.
     fn remove_column(&mut self, column: ChunkColumn) {
-        if let Some(cached) = self.columns.remove(&column) {
+        if let Some(cached) = unshared(&mut self.columns).remove(&column) {
             self.held.sub(cached.held);
         }
     }
@@ -568,9 +584,16 @@ impl<H: MeshHandle> MeshCache<H> {
     }
 }
 
+/// The cached columns, to change: never while the LOD thread plans with
+/// them (the streamer takes its plan back first, and the thread lets go of
+/// them before it sends the plan).
+fn unshared<H>(columns: &mut Arc<ColumnStore<H>>) -> &mut ColumnStore<H> {
+    Arc::get_mut(columns).expect("the cached columns are shared only while the LOD thread plans")
+}
+
 /// Which work a job is: the view's first, then seams, then prefetching.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-enum Tier {
+pub(crate) enum Tier {
     /// Out of view, for a later turn ([`MeshCache::prefetch`]).
     Prefetch,
     /// A chunk drawn with a mesh made for other LODs around it than those
@@ -584,12 +607,12 @@ enum Tier {
 /// A meshing job: one chunk, with the priority of its column, and the
 /// seams to make it for.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Job {
-    tier: Tier,
-    priority: f64,
-    key: ChunkKey,
-    seams: SeamStrategy,
-    relations: SideRelations,
+pub(crate) struct Job {
+    pub(crate) tier: Tier,
+    pub(crate) priority: f64,
+    pub(crate) key: ChunkKey,
+    pub(crate) seams: SeamStrategy,
+    pub(crate) relations: SideRelations,
 }
 
 impl Eq for Job {}
@@ -669,10 +692,10 @@ pub type Uploader<H> = Arc<dyn Fn(ChunkKey, &RenderMesh) -> H + Send + Sync>;
 /// A chunk whose meshing failed: it is asked for again after a wait that
 /// doubles with each failure, and its stand-in is drawn meanwhile.
 #[derive(Clone, Copy, Debug)]
-struct Failure {
+pub(crate) struct Failure {
     attempts: u32,
     /// The first frame it may be tried again.
-    retry_at: u64,
+    pub(crate) retry_at: u64,
 }
 
 /// Frames before the first retry of a failed chunk; each further failure
@@ -745,7 +768,7 @@ pub struct OpaqueSea {
 
 /// Columns [`Streamer`] remembers as under the sea or not before it
 /// forgets them all (about 10 MB).
-const MAX_SEA_BED_MEMO: usize = 200_000;
+pub(crate) const MAX_SEA_BED_MEMO: usize = 200_000;
 
 /// The prefetch set ([`MeshCache::prefetch`]) is worked out again (a walk
 /// over every leaf of the tree, 10–20 ms on an Earth view) at most every
@@ -804,8 +827,16 @@ pub struct DrawList {
 pub struct StageTimes {
     /// LOD update and culling.
     pub lod_ms: f64,
-    /// Choosing what to draw and what to mesh.
+    /// Choosing what to draw and what to mesh, on the frame thread: applying
+    /// the plan made ahead on the LOD thread, or making it too when none
+    /// could serve.
     pub select_ms: f64,
+    /// Making the plan of the selection (on the LOD thread, ahead of the
+    /// frame, when made there).
+    pub plan_ms: f64,
+    /// Whether the selection was planned ahead on the LOD thread (else on
+    /// the frame thread: no plan made ahead could serve this camera).
+    pub planned_ahead: bool,
     /// Meshing jobs collected this frame (CPU time of the jobs, on worker
     /// threads).
     pub meshing_ms: f64,
@@ -906,21 +937,20 @@ pub struct Streamer<S, H> {
     eye: Camera,
     /// The sea the renderer draws, if any.
     sea: Option<OpaqueSea>,
-    /// Columns known to lie under that sea, or not.
-    under_sea: HashMap<ChunkColumn, bool>,
     /// The camera the tree's visible leaves were last picked for, while
     /// the tree has not changed since.
     culled_for: Option<Camera>,
-    /// Prefetch jobs not done yet, from the last prefetch refresh.
-    prefetch_jobs: Vec<Job>,
-    /// Frame of the last prefetch refresh, and whether the tree changed
-    /// since.
-    prefetched_at: u64,
-    tree_changed: bool,
-    /// What the last prefetch refresh keeps: freed last, never for age.
-    keep: HashSet<ChunkColumn>,
-    /// The selection's sets, kept for their allocations.
-    scratch: SelectScratch,
+    /// What the selection keeps from frame to frame (`None` while the
+    /// LOD thread plans with it: [`Streamer::selection_mut`] takes it
+    /// back).
+    selection: Option<Box<Selection>>,
+    /// What the LOD thread made for the next update, taken back before it
+    /// (the selection's state was needed, or the cache was to change: its
+    /// plan is dropped).
+    early: Option<Outcome<H>>,
+    /// Whether prefetching was done after the last update, bar the jobs
+    /// queued or running ([`Streamer::prefetched`]).
+    prefetch_done: bool,
     /// The cache slot of each column of the draw list, in its order.
     drawn_slots: Vec<Option<usize>>,
     /// Chunks and bytes held at the end of the last update.
@@ -931,9 +961,6 @@ pub struct Streamer<S, H> {
     lod_failures: usize,
     /// Whether the last LOD update went through.
     lod_ok: bool,
-    /// Whether the last selection asked for meshes of the view: prefetching
-    /// waits until it does not.
-    view_busy: bool,
     /// Finished meshes collected from the workers, not uploaded yet.
     finished: std::collections::VecDeque<MeshResult<H>>,
     /// First failures not taken by the game yet.
@@ -941,9 +968,12 @@ pub struct Streamer<S, H> {
     /// Meshes uploaded this frame and not kept, freed by a meshing worker
     /// ([`JobState::spent`]).
     spent: Vec<RenderMesh>,
+    /// Chunks collected this frame (meshed, failed or thrown away): a plan
+    /// made before asks for them again.
+    collected: HashSet<ChunkKey>,
     /// The LOD tree's update and cull made ahead for the next frame
     /// (`None`: on the frame thread only, [`Streamer::set_lod_thread`]).
-    lod_thread: Option<LodThread<S>>,
+    lod_thread: Option<LodThread<S, H>>,
     /// Frames whose tree came from the LOD thread, and frames that had to
     /// update and cull on the frame thread.
     lod_frames: (u64, u64),
@@ -1012,7 +1042,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 receiver: Mutex::new(receiver),
             },
             cache: MeshCache {
-                columns: ColumnStore::default(),
+                columns: Arc::default(),
                 held: Held::default(),
                 keep_cpu: false,
                 prefetch: true,
@@ -1031,22 +1061,19 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             options: DrawOptions::default(),
             eye: camera,
             sea: None,
-            under_sea: HashMap::default(),
             culled_for: None,
-            prefetch_jobs: Vec::new(),
-            prefetched_at: 0,
-            tree_changed: true,
-            keep: HashSet::default(),
-            scratch: SelectScratch::default(),
+            selection: Some(Box::new(Selection::new())),
+            early: None,
+            prefetch_done: false,
             drawn_slots: Vec::new(),
             held: (0, 0),
             failed: HashMap::default(),
             lod_failures: 0,
             lod_ok: false,
-            view_busy: true,
             finished: std::collections::VecDeque::new(),
             failures: Vec::new(),
             spent: Vec::new(),
+            collected: HashSet::default(),
             lod_thread: None,
             lod_frames: (0, 0),
             last_step: 0.0,
@@ -1136,6 +1163,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if seams == self.seams {
             return;
         }
+        self.reclaim();
         self.seams = seams;
         let keys: Vec<ChunkKey> = self
             .cache
@@ -1163,6 +1191,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// Changes what is drawn (see [`DrawOptions`]), from the next update.
     pub fn set_draw_options(&mut self, options: DrawOptions) {
+        if options != self.options {
+            // A plan made ahead has the old ones.
+            self.reclaim();
+        }
         self.options = options;
     }
 
@@ -1178,7 +1210,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn set_opaque_sea(&mut self, sea: Option<OpaqueSea>) {
         if self.sea != sea {
             self.sea = sea;
-            self.under_sea.clear();
+            self.selection_mut().under_sea.clear();
         }
     }
 
@@ -1204,43 +1236,62 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// meshes with `upload` (at most [`MAX_UPLOADS_PER_FRAME`]), chooses
     /// what to draw and what to mesh next, and frees meshes past the
     /// budget. Never waits for meshing.
+    ///
+    /// With the LOD thread ([`Streamer::set_lod_thread`], the default) the
+    /// tree and the selection of this frame were made ahead, while the
+    /// game drew the frame before, for a predicted camera; this update
+    /// takes them when they cover the camera that came, and makes its own
+    /// when not.
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
+        let start = Instant::now();
+        let mut made_ahead = self.take_outcome();
         let view = self.voxels.layer_view(camera.position);
         if view != self.view {
             self.view = view;
             self.refresh_layers();
+            // Planned for the layers seen before.
+            if let Some(outcome) = made_ahead.as_mut() {
+                outcome.plan = None;
+            }
         }
         let previous = std::mem::replace(&mut self.eye, camera);
-        let start = Instant::now();
         let step = previous.position.distance(camera.position);
+        let last_step = std::mem::replace(&mut self.last_step, step);
         // The tree made ahead for this frame, when its cull covers the
         // camera that came; else the frame thread updates its own.
-        match self.take_lod_thread_tree(&camera) {
-            Some(true) => {
+        let mut plan = None;
+        match made_ahead.map(|outcome| self.take_made_ahead(outcome, &camera)) {
+            Some(Some(planned)) => {
                 self.lod_frames.0 += 1;
                 self.lod_ok = true;
+                plan = planned;
             }
             missed => {
                 self.lod_frames.1 += u64::from(missed.is_some());
                 self.update_tree(camera);
             }
         }
-        if let Some(thread) = self.lod_thread.as_mut()
-            && self.lod_ok
-        {
-            let (next, margin) = predict(&previous, &camera, self.last_step);
-            thread.ask(&self.voxels, next, margin);
-        }
-        self.last_step = step;
         self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
         self.collect(upload);
         if self.lod_ok {
-            self.select();
+            let (plan, here) = match plan.filter(|plan| self.serves(plan)) {
+                Some(plan) => (plan, false),
+                None => (self.plan_here(), true),
+            };
+            self.times.planned_ahead = !here;
+            self.apply(plan);
+            if here {
+                self.times.select_ms += self.times.plan_ms;
+            }
             self.free();
         }
         // Else the last frame's selection is drawn again (nothing it draws
         // was freed), never an empty one.
+        self.prefetch_done = self.selection.as_deref().is_some_and(|selection| {
+            (!self.cache.prefetch || !selection.tree_changed)
+                && (selection.prefetch_jobs.is_empty() || !self.cache.room_to_prefetch(self.held))
+        });
         #[cfg(test)]
         {
             assert_eq!(self.cache.held, self.cache.recount(), "the cache's running totals");
@@ -1256,26 +1307,214 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 );
             }
         }
+        if self.lod_ok {
+            self.ask_ahead(&previous, &camera, last_step);
+        }
     }
 
-    /// Takes the LOD thread's tree for this frame if its cull covers
-    /// `camera`: `Some(true)` if it did, `Some(false)` if one was asked for
-    /// and cannot serve (not covered, failed, or made before a change),
-    /// `None` if none was asked for (no thread, or a still camera).
-    fn take_lod_thread_tree(&mut self, camera: &Camera) -> Option<bool> {
-        let thread = self.lod_thread.as_mut()?;
-        if !thread.in_flight() {
-            return None;
+    /// Asks the LOD thread for the next frame's tree and selection, for the
+    /// camera that the motion from `previous` to `current` predicts; the
+    /// selection's state and the cached columns go with the request.
+    fn ask_ahead(&mut self, previous: &Camera, current: &Camera, last_step: f64) {
+        if self.lod_thread.is_none() {
+            return;
         }
-        let Some(Outcome::Tree { mut tree, changed, .. }) = thread.take() else { return Some(false) };
+        let (next, margin) = predict(previous, current, last_step);
+        let settings = self.select_settings(self.frame + 1, next, margin.distance);
+        let select = self.selection.take().map(|selection| SelectRequest {
+            selection,
+            columns: self.cache.columns.clone(),
+            stale: self.cache.stale.clone(),
+            gained: self.cache.gained.clone(),
+            failed: self.failed.clone(),
+            settings,
+        });
+        if let Some(thread) = self.lod_thread.as_mut() {
+            thread.ask(&self.voxels, next, margin, select);
+        }
+    }
+
+    /// Takes back what the LOD thread made for this update (waiting for
+    /// it, or as taken back before): the selection's state comes home and
+    /// the cached columns are the frame thread's alone again.
+    fn take_outcome(&mut self) -> Option<Outcome<H>> {
+        let mut outcome = match self.early.take() {
+            Some(outcome) => outcome,
+            None => self.lod_thread.as_mut()?.take()?,
+        };
+        if let Some(selection) = outcome.selection.take() {
+            self.selection = Some(selection);
+        }
+        Some(outcome)
+    }
+
+    /// Takes back the selection's state and the cached columns if the LOD
+    /// thread is planning with them, keeping its tree for the next update
+    /// and dropping its plan (what it was made from is about to change).
+    fn reclaim(&mut self) {
+        if let Some(mut outcome) = self.take_outcome() {
+            outcome.plan = None;
+            self.early = Some(outcome);
+        }
+    }
+
+    /// The selection's state, taken back from the LOD thread if it is
+    /// there (a new one if the thread is gone with it).
+    fn selection_mut(&mut self) -> &mut Selection {
+        if self.selection.is_none() {
+            self.reclaim();
+        }
+        self.selection.get_or_insert_with(|| Box::new(Selection::new()))
+    }
+
+    /// Takes the tree the LOD thread made for this frame, and its plan, if
+    /// the tree was made after every change sent to the thread and its
+    /// cull covers `camera`; `None` when it cannot serve (not covered,
+    /// failed, or made before a change).
+    fn take_made_ahead(&mut self, outcome: Outcome<H>, camera: &Camera) -> Option<Option<Plan<H>>> {
+        let current = self.lod_thread.as_ref().is_some_and(|thread| thread.is_current(&outcome));
+        let (mut tree, _) = outcome.tree.filter(|_| current)?;
         // Its cull, made with a margin, narrowed to this camera's view.
-        if tree.narrow_cull(camera).is_err() {
-            return Some(false);
-        }
+        tree.narrow_cull(camera).ok()?;
         self.tree = *tree;
-        self.tree_changed |= changed;
         self.culled_for = Some(*camera);
-        Some(true)
+        Some(outcome.plan)
+    }
+
+    /// The settings of a plan for `frame`, for `camera` (its eye, or one
+    /// within `eye_margin` of it).
+    fn select_settings(&self, frame: u64, camera: Camera, eye_margin: f64) -> SelectSettings {
+        SelectSettings {
+            frame,
+            view: self.view,
+            seams: self.seams,
+            sea: self.sea,
+            options: self.options,
+            prefetch: self.cache.prefetch,
+            room_to_prefetch: self.cache.room_to_prefetch(self.held),
+            camera,
+            eye_margin,
+        }
+    }
+
+    /// Whether a plan made ahead serves the camera that came: it sees none
+    /// of the leaves in view the plan draws nothing for (as the tree's
+    /// narrowed cull tells what it sees).
+    fn serves(&self, plan: &Plan<H>) -> bool {
+        if plan.unseen.is_empty() {
+            return true;
+        }
+        let frustum = nebula_lod::Frustum::new(&self.eye, self.tree.settings().fov_y_degrees);
+        let horizon = nebula_lod::Horizon::new(self.eye.position, self.tree.min_surface_radius());
+        plan.unseen.iter().all(|bounds| frustum.excludes(bounds) || horizon.hides(bounds))
+    }
+
+    /// Plans this frame's selection on the frame thread (no plan made
+    /// ahead could serve).
+    fn plan_here(&mut self) -> Plan<H> {
+        let settings = self.select_settings(self.frame, self.eye, 0.0);
+        let mut selection = self.selection.take().unwrap_or_else(|| Box::new(Selection::new()));
+        let input = SelectInput {
+            voxels: &*self.voxels,
+            tree: &self.tree,
+            columns: &self.cache.columns,
+            stale: &self.cache.stale,
+            gained: &self.cache.gained,
+            failed: &self.failed,
+            settings,
+        };
+        let plan = crate::select::plan(&input, &mut selection);
+        self.selection = Some(selection);
+        plan
+    }
+
+    /// Applies a plan made from the streamer as the last update left it
+    /// (here or on the LOD thread): marks what it draws and wants as used,
+    /// adds the columns it wants, tells which walls look away from the eye
+    /// that came, checks seams against the meshes held now (this update
+    /// collected some), and queues its jobs.
+    fn apply(&mut self, plan: Plan<H>) {
+        let start = Instant::now();
+        let Plan {
+            mut draw, slots, arounds, used, new_columns, dropped_stale, mut jobs, forget_failed, millis, ..
+        } = plan;
+        let frame = self.frame;
+        let cache = &mut self.cache;
+        let columns = cache.columns_mut();
+        for (slot, column) in used {
+            if let Some(cached) = columns.in_slot_mut(slot, column) {
+                cached.last_used = frame;
+            }
+        }
+        for cached in new_columns {
+            // Collected meshes may have brought the column in already.
+            columns.get_or_insert_with(cached.column, || cached).1.last_used = frame;
+        }
+        for key in dropped_stale {
+            // Unless its new mesh came meanwhile.
+            if cache.stale.remove(&key).is_some() {
+                cache.remove(key);
+            }
+        }
+        let MeshCache { stale, gained, .. } = &mut *cache;
+        gained.retain(|key| stale.contains_key(key));
+        let (voxels, eye, seams, options) = (&*self.voxels, self.eye.position, self.seams, self.options);
+        if options.cull_back_sides {
+            for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
+                let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
+                chunk_draw.hidden_sides = match cached.or_else(|| cache.columns.get(column)) {
+                    Some(cached) => cached.sides.back_sides(eye),
+                    None => ColumnSides::of(voxels.layout(), *column).back_sides(eye),
+                };
+            }
+        }
+        let mut reseamed = HashSet::default();
+        if seams.meshes_for_neighbours() {
+            let tree = &self.tree;
+            let priority = |column: ChunkColumn| job_priority(voxels, tree, eye, column, None);
+            let reseams = settle_seams(voxels, cache, &mut draw, &slots, &arounds, seams, options, &priority);
+            if !reseams.is_empty() {
+                // Seams of the view to mesh again: no prefetching yet.
+                if let Some(selection) = self.selection.as_deref_mut() {
+                    selection.view_busy = true;
+                }
+                jobs.retain(|job| job.tier != Tier::Prefetch);
+            }
+            reseamed.extend(reseams.iter().map(|job| job.key));
+            // An edited chunk among them is meshed for them by its edit's
+            // job: one job per chunk.
+            jobs.extend(reseams.into_iter().filter(|job| !cache.stale.contains_key(&job.key)));
+        }
+        // A plan made ahead asks for what this update collected: asked
+        // again if it still is (a failure waits for its retry below, an
+        // edit's chunk is stale until a mesh of its voxels comes).
+        if !self.collected.is_empty() {
+            let (collected, cache) = (&self.collected, &self.cache);
+            jobs.retain(|job| {
+                !collected.contains(&job.key) || (!cache.holds(job.key) || cache.stale.contains_key(&job.key))
+            });
+        }
+        // A chunk that failed waits for its retry (failures collected this
+        // update too); one no longer asked for is forgotten.
+        for key in forget_failed.iter().filter(|key| !reseamed.contains(*key)) {
+            self.failed.remove(key);
+        }
+        if !self.failed.is_empty() {
+            let failed = &self.failed;
+            jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+        }
+        keep_most_urgent(&mut jobs);
+        if let Ok(mut state) = self.meshing.state.lock() {
+            state.queue.clear();
+            let JobState { queue, running, .. } = &mut *state;
+            queue.extend(jobs.into_iter().filter(|job| !running.contains_key(&job.key)));
+            state.voxels = Some((self.voxels.clone(), self.generation));
+        }
+        self.draw = draw;
+        self.drawn_slots = slots;
+        self.spawn_workers();
+        self.times.plan_ms = millis;
+        self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
     }
 
     /// Updates and culls the frame thread's own tree for `camera`.
@@ -1289,7 +1528,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             self.tree.update(&*self.voxels, &camera).and_then(|changes| {
                 let same_tree =
                     changes.added.is_empty() && changes.removed.is_empty() && changes.neighbours_changed.is_empty();
-                self.tree_changed |= !same_tree;
                 changed = !same_tree;
                 if !(same_tree && self.culled_for == Some(camera)) {
                     self.culled_for = None;
@@ -1324,10 +1562,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| LodTree::new(voxels, settings)))
                 {
                     self.tree = tree;
-                    self.tree_changed = true;
                     changed = true;
                 }
             }
+        }
+        if changed {
+            self.selection_mut().tree_changed = true;
         }
         // The LOD thread goes on from the tree this frame made, not its own
         // older one (on a cold start it would make the whole tree again
@@ -1344,6 +1584,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// update their own as with `false`. Returns whether the thread runs
     /// (it may not start).
     pub fn set_lod_thread(&mut self, on: bool) -> bool {
+        // What the old thread made is not for the new one.
+        self.reclaim();
+        self.early = None;
         self.lod_thread = if on { LodThread::start(&self.tree).ok() } else { None };
         self.lod_thread.is_some()
     }
@@ -1368,12 +1611,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// # Errors
     /// If the voxel source refuses a touched column.
     pub fn set_voxels(&mut self, voxels: Arc<S>, dirty: &[ChunkKey]) -> Result<(), StreamError> {
+        self.reclaim();
         self.generation += 1;
         self.voxels = voxels;
         let stitched = self.stitched_across(dirty);
         let dirty = &[dirty, &stitched].concat();
         // An edit can put anything on the sea bed, and moves bounds.
-        self.under_sea.clear();
+        self.selection_mut().under_sea.clear();
         self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
         // The next job a worker takes reads the new voxels; only the jobs
@@ -1481,8 +1725,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn refresh_layers(&mut self) {
         // Prefetch jobs made for the old layers would be meshed and thrown
         // away: list them again on the next update.
-        self.prefetched_at = 0;
-        self.prefetch_jobs.clear();
+        let selection = self.selection_mut();
+        selection.prefetched_at = 0;
+        selection.prefetch_jobs.clear();
         let drawn: HashSet<ChunkColumn> = self.draw.columns.iter().map(|(c, _)| *c).collect();
         let columns: Vec<ChunkColumn> = self.cache.columns.iter().map(|(column, _)| *column).collect();
         for column in columns {
@@ -1497,7 +1742,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// freeing the meshes of layers it no longer has.
     fn reread_layers(&mut self, column: ChunkColumn) {
         let layers = column_layers(&*self.voxels, &self.tree, column, self.view);
-        let Some(cached) = self.cache.columns.get_mut(&column) else { return };
+        let Some(cached) = self.cache.columns_mut().get_mut(&column) else { return };
         cached.layers.clone_from(&layers);
         self.cache.retain_layers(column, |layer| layers.contains(&layer));
     }
@@ -1528,9 +1773,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// before the tree was refined, and is made anew within a few frames).
     #[must_use]
     pub fn prefetched(&self) -> bool {
-        (!self.cache.prefetch || !self.tree_changed)
-            && self.meshing.pending() == self.meshing.view_pending()
-            && (self.prefetch_jobs.is_empty() || !self.cache.room_to_prefetch(self.held))
+        self.prefetch_done && self.meshing.pending() == self.meshing.view_pending()
     }
 
     /// Meshing jobs queued or running (the view's and prefetching); at
@@ -1591,7 +1834,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.tree.set_view(threshold_px, screen_height_px, fov_y_degrees)?;
         if *self.tree.settings() != before {
             self.culled_for = None;
-            self.tree_changed = true;
+            self.selection_mut().tree_changed = true;
             if let Some(thread) = self.lod_thread.as_mut() {
                 thread.set_view(threshold_px, screen_height_px, fov_y_degrees);
             }
@@ -1693,8 +1936,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
         };
         let (voxels, tree, frame, view) = (&*self.voxels, &self.tree, self.frame, self.view);
-        let (_, entry) =
-            self.cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
+        let (_, entry) = self
+            .cache
+            .columns_mut()
+            .get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
         if entry.layers.contains(&key.layer) {
             self.cache.insert(column, key.layer, loaded);
         }
@@ -1757,7 +2002,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
         }
         let mut meshing_ms = 0.0;
+        self.collected.clear();
         for done in results {
+            self.collected.insert(done.key);
             meshing_ms += done.millis;
             self.times.chunks_meshed += 1;
             if self.store(done, upload) {
@@ -1772,393 +2019,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.times.meshing_ms = meshing_ms;
         self.times.meshing_total_ms += meshing_ms;
         self.times.upload_ms = start.elapsed().as_secs_f64() * 1e3;
-    }
-
-    /// Chooses what to draw (see the module docs), the skirt depth of every
-    /// drawn side, and the meshing jobs, by priority.
-    fn select(&mut self) {
-        let start = Instant::now();
-        let voxels = &*self.voxels;
-        let tree = &self.tree;
-        let cache = &mut self.cache;
-        let (frame, view) = (self.frame, self.view);
-        let layout = voxels.layout();
-        let max_lod = layout.max_lod();
-        let eye = self.eye.position;
-        // Sets reused from frame to frame: allocating and growing them anew
-        // each frame cost page faults and rehashing.
-        let SelectScratch { mut ancestors, mut hidden_tops, mut drawn_set, mut seen, mut climbs, mut stand_in_climbs } =
-            std::mem::take(&mut self.scratch);
-        climbs.clear();
-        stand_in_climbs.clear();
-        ancestors.clear();
-        hidden_tops.clear();
-        drawn_set.clear();
-        seen.clear();
-        // The drawn columns, with their wall planes and lowest surface
-        // radius (`None` behind the horizon) where the leaf loop has them
-        // at hand (`None`: looked up when the draw list is made).
-        let mut drawn: Vec<(ChunkColumn, Option<KnownDraw>)> = Vec::new();
-        // Columns to mesh, with their bounds where the leaf loop has them.
-        let mut wanted: Vec<(ChunkColumn, Option<&nebula_lod::NodeBounds>)> = Vec::new();
-        // A job's priority: its column's projected voxel edge (largest
-        // first: coarse-first and nearest-first), the same for both tiers.
-        let k = tree.screen_space().k();
-        let priority_within = |column: ChunkColumn, bounds: Option<&nebula_lod::NodeBounds>| {
-            let distance = bounds.map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
-            layout.voxel_edge(column.lod) * k / distance
-        };
-        let priority = |column: ChunkColumn| priority_within(column, tree.node_bounds(column));
-        // The LODs a new mesh is made for: the tree's around a leaf (what
-        // will be drawn once the view settles), the same all round for a
-        // stand-in; a drawn column's are checked against what is drawn.
-        let seams = self.seams;
-        let predicted = |column: ChunkColumn| match seams.meshes_for_neighbours() {
-            true => tree.context(column).map_or(SAME_ALL_ROUND, |context| side_relations(&context)),
-            false => SAME_ALL_ROUND,
-        };
-        let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
-        // Leaves behind the terrain's horizon are drawn as their coarsest
-        // ancestor that is hidden too: a few coarse chunks where the
-        // selection has thousands the eye cannot see. Coarse, not left out:
-        // where a coarse stand-in in front dips below that horizon, what
-        // shows through is coarse, never a hole.
-        let occluder = tree.horizon_occluder(voxels, eye);
-        let horizon = occluder.map(|r| nebula_lod::Horizon::new(eye, r));
-        let behind =
-            |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
-        let bounds_behind = |bounds: &nebula_lod::NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
-        // The same for leaves under an opaque sea, seen from above it.
-        let sea = self.sea.filter(|sea| eye.length() > sea.radius);
-        if self.under_sea.len() > MAX_SEA_BED_MEMO {
-            self.under_sea.clear();
-        }
-        let memo = &mut self.under_sea;
-        // Whether the sea hides `column`; when `climbing` to it as a
-        // stand-in, it must have the sea bed all round too: a coarse
-        // stand-in next to a leaf drawn in detail would lower the ground
-        // beside that leaf and bare its skirt, which takes the leaf's
-        // material (never sea bed at a coast, so no water over it).
-        let mut sea_hides = |column: ChunkColumn, climbing: bool| {
-            sea.is_some_and(|sea| {
-                under_sea(voxels, sea, memo, column, max_lod)
-                    && (!climbing
-                        || FaceEdge::ALL.iter().all(|&edge| {
-                            let across = layout.neighbor(column.chunk(0), edge).column();
-                            under_sea(voxels, sea, memo, across, max_lod)
-                        }))
-            })
-        };
-        // What is drawn for a leaf (with its bounds when known): itself, or
-        // its coarsest ancestor hidden too (behind the horizon or under the
-        // sea), and why.
-        let mut drawn_for = |leaf: ChunkColumn, bounds: Option<&nebula_lod::NodeBounds>| -> (ChunkColumn, Hidden) {
-            let hidden = if bounds.map_or_else(|| behind(leaf), bounds_behind) {
-                Hidden::BehindHorizon
-            } else if sea_hides(leaf, false) {
-                Hidden::UnderSea
-            } else {
-                return (leaf, Hidden::No);
-            };
-            // Siblings, hidden alike, climb from the same parent: once a
-            // frame for all of them.
-            let Some(first) = parent(leaf).filter(|_| leaf.lod < max_lod) else { return (leaf, hidden) };
-            let mut hides = |column: ChunkColumn| behind(column) || sea_hides(column, true);
-            let top = *climbs.entry(first).or_insert_with(|| {
-                if !hides(first) {
-                    return None;
-                }
-                let mut top = first;
-                while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hides(up)) {
-                    top = up;
-                }
-                Some(top)
-            });
-            (top.unwrap_or(leaf), hidden)
-        };
-        let (mut behind_horizon, mut under_the_sea) = (0, 0);
-        for (leaf, bounds) in tree.visible_leaves_with_bounds() {
-            let (leaf, hidden) = drawn_for(leaf, Some(bounds));
-            match hidden {
-                Hidden::No => {}
-                Hidden::BehindHorizon => behind_horizon += 1,
-                Hidden::UnderSea => under_the_sea += 1,
-            }
-            if hidden != Hidden::No && !hidden_tops.insert(leaf) {
-                continue;
-            }
-            if let Some((slot, cached)) = cache.columns.slot_mut(&leaf)
-                && cached.ready(leaf, &cache.stale)
-            {
-                // In use even when a stand-in covering it is drawn instead
-                // (a sibling is not ready): never freed while it is a leaf.
-                cached.last_used = frame;
-                let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
-                drawn.push((leaf, known));
-                continue;
-            }
-            wanted.push((leaf, (hidden == Hidden::No).then_some(bounds)));
-            stand_ins += 1;
-            if let Some(finer) = children(leaf)
-                && finer.iter().all(|&c| cache.ready(c))
-            {
-                drawn.extend(finer.map(|c| (c, None)));
-                continue;
-            }
-            // The nearest ready ancestor, and the stand-ins on the way up
-            // wanted: the same for every sibling, so climbed once a frame
-            // from their parent (thousands of leaves wait for meshes at
-            // once in a fast flight).
-            let climb = |wanted: &mut Vec<_>| {
-                let mut ancestor = leaf;
-                while ancestor.lod < max_lod {
-                    let Some(up) = parent(ancestor) else { break };
-                    ancestor = up;
-                    if cache.ready(ancestor) {
-                        return Some(ancestor);
-                    }
-                    if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
-                        wanted.push((ancestor, None));
-                    }
-                }
-                None
-            };
-            let found = match parent(leaf).filter(|_| leaf.lod < max_lod) {
-                Some(first) => *stand_in_climbs.entry(first).or_insert_with(|| climb(&mut wanted)),
-                None => climb(&mut wanted),
-            };
-            if let Some(ancestor) = found {
-                max_levels = max_levels.max(ancestor.lod - leaf.lod);
-                ancestors.insert(ancestor);
-            } else {
-                holes += 1;
-            }
-        }
-        // Out of view: every leaf the tree holds (as it would be drawn) and
-        // its stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's
-        // work and kept, so a turn of the camera finds them meshed.
-        let age = frame.saturating_sub(self.prefetched_at);
-        // Not while the view has work of its own: a cold start or a fast
-        // flight spends the frame thread and the workers on what is seen.
-        let refresh = cache.prefetch
-            && !self.view_busy
-            && (self.prefetched_at == 0
-                || (self.tree_changed && age >= PREFETCH_REFRESH_FRAMES)
-                || age >= PREFETCH_MAX_AGE_FRAMES);
-        if refresh {
-            self.prefetched_at = frame;
-            self.tree_changed = false;
-            let mut keep: HashSet<ChunkColumn> = HashSet::default();
-            for leaf in tree.leaf_columns() {
-                let (column, _) = drawn_for(leaf, None);
-                if keep.insert(column) {
-                    let mut up = column;
-                    for _ in 0..STAND_IN_LEVEL_STEP {
-                        match parent(up).filter(|_| up.lod < max_lod) {
-                            Some(coarser) => up = coarser,
-                            None => break,
-                        }
-                    }
-                    keep.insert(up);
-                }
-            }
-            self.prefetch_jobs.clear();
-            for &column in &keep {
-                let layers = match cache.columns.get(&column) {
-                    Some(cached) => cached.layers.clone(),
-                    None => column_layers(&*self.voxels, tree, column, self.view),
-                };
-                let priority = priority(column);
-                self.prefetch_jobs.extend(
-                    layers
-                        .into_iter()
-                        .map(|layer| column.chunk(layer))
-                        .filter(|&key| !cache.holds(key))
-                        .map(|key| Job { tier: Tier::Prefetch, priority, key, seams, relations: predicted(column) }),
-                );
-            }
-            // The most urgent last: meshed jobs come off its end.
-            self.prefetch_jobs.sort_unstable();
-            self.keep = keep;
-        } else if !cache.prefetch {
-            self.prefetch_jobs.clear();
-            self.keep.clear();
-        }
-        // A drawn ancestor covers everything under it.
-        let covered = |column: ChunkColumn| {
-            let mut c = column;
-            while c.lod < max_lod {
-                let Some(up) = parent(c) else { break };
-                c = up;
-                if ancestors.contains(&c) {
-                    return true;
-                }
-            }
-            false
-        };
-        if !ancestors.is_empty() {
-            drawn.retain(|&(c, _)| !covered(c));
-            drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
-        }
-        drawn.sort_unstable_by_key(|&(c, _)| c);
-        drawn.dedup_by_key(|&mut (c, _)| c);
-        self.draw.behind_horizon = behind_horizon;
-        self.draw.under_sea = under_the_sea;
-        self.draw.occluder_radius = occluder.unwrap_or(f64::NAN);
-        drawn_set.extend(drawn.iter().map(|&(c, _)| c));
-        let set = &drawn_set;
-        // With meshes made for their neighbours: every ancestor of a drawn
-        // column (a side whose same-LOD neighbour is one meets finer ones).
-        let mut above = HashSet::default();
-        if seams.meshes_for_neighbours() {
-            for &(column, _) in &drawn {
-                let mut c = column;
-                while let Some(up) = parent(c).filter(|_| c.lod < max_lod) {
-                    if !above.insert(up) {
-                        break;
-                    }
-                    c = up;
-                }
-            }
-        }
-        let mut arounds = Vec::new();
-        let mut min_radius = f64::INFINITY;
-        let options = self.options;
-        let mut max_lod_diff = 0;
-        self.drawn_slots.clear();
-        self.draw.columns = drawn
-            .iter()
-            .map(|&(column, known)| {
-                let known = known.and_then(|(slot, low)| {
-                    cache.columns.in_slot(slot, column).map(|cached| (Some(slot), cached.sides, low))
-                });
-                let (slot, sides, low) = known.unwrap_or_else(|| {
-                    let (slot, sides) = match cache.columns.slot_mut(&column) {
-                        Some((slot, cached)) => {
-                            cached.last_used = frame;
-                            (Some(slot), cached.sides)
-                        }
-                        None => (None, ColumnSides::of(layout, column)),
-                    };
-                    // The tree's cached bounds; a stand-in the tree merged
-                    // away asks the source (noise) once here. A coarse chunk
-                    // drawn behind the horizon is left out: its voxels round
-                    // the surface far down, and the terrain in front hides it.
-                    let bounds = tree.node_bounds(column);
-                    let low = bounds
-                        .map(|b| b.min_radius)
-                        .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                        .filter(|_| !bounds.is_some_and(bounds_behind));
-                    (slot, sides, low)
-                });
-                if let Some(low) = low {
-                    min_radius = min_radius.min(low);
-                }
-                self.drawn_slots.push(slot);
-                let around = drawn_across(&sides, set, &above, max_lod);
-                if seams.meshes_for_neighbours() {
-                    arounds.push(around);
-                }
-                let draw = chunk_draw(voxels, column, &sides, &around, options, eye);
-                for across in around {
-                    if let Across::Drawn(other) = across {
-                        max_lod_diff = max_lod_diff.max(other.lod - column.lod);
-                    }
-                }
-                (column, draw)
-            })
-            .collect();
-        self.draw.holes = holes;
-        self.draw.stand_ins = stand_ins;
-        self.draw.max_stand_in_levels = max_levels;
-        self.draw.min_surface_radius = min_radius;
-        self.draw.max_lod_diff = max_lod_diff;
-        let (drawn_relations, reseams) = if seams.meshes_for_neighbours() {
-            let slots = &self.drawn_slots;
-            settle_seams(voxels, cache, &mut self.draw, slots, &arounds, seams, options, &priority)
-        } else {
-            (Vec::new(), Vec::new())
-        };
-        let columns = &self.draw.columns;
-        let drawn_relations = |column: ChunkColumn| {
-            let index = columns.binary_search_by_key(&column, |&(c, _)| c).ok()?;
-            drawn_relations.get(index).copied()
-        };
-
-        // Jobs: every chunk of a wanted column not meshed and not running,
-        // the largest projected voxel first.
-        let mut jobs = Vec::new();
-        for (column, bounds) in wanted {
-            if !seen.insert(column) {
-                continue;
-            }
-            let priority = priority_within(column, bounds.or_else(|| tree.node_bounds(column)));
-            let (_, entry) =
-                cache.columns.get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
-            entry.last_used = frame;
-            let relations = predicted(column);
-            for &layer in &entry.layers {
-                if !entry.chunks.contains(layer) {
-                    let key = column.chunk(layer);
-                    jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
-                }
-            }
-        }
-        // Seams meshed again for the LODs drawn around them (an edited chunk
-        // among them is meshed for them by its edit's job, below: one job
-        // per chunk).
-        jobs.extend(reseams.into_iter().filter(|job| !cache.stale.contains_key(&job.key)));
-        // Drawn chunks an edit changed go first: the player is looking at
-        // them. One no longer drawn is dropped, to be meshed when needed.
-        let undrawn: Vec<ChunkKey> = cache.stale.keys().filter(|key| !set.contains(&key.column())).copied().collect();
-        for key in undrawn {
-            cache.stale.remove(&key);
-            cache.remove(key);
-        }
-        let MeshCache { stale, gained, .. } = &mut *cache;
-        gained.retain(|key| stale.contains_key(key));
-        for &key in stale.keys() {
-            let priority = if gained.contains(&key) { priority(key.column()) } else { f64::MAX };
-            let relations = drawn_relations(key.column()).unwrap_or_else(|| predicted(key.column()));
-            jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
-        }
-        // Prefetching only while there is room for it: what the view needs
-        // is never evicted for it.
-        // (A chunk waiting to retry a failure does not hold prefetching up.)
-        let failed = &self.failed;
-        self.view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
-        if !self.view_busy {
-            while self.prefetch_jobs.last().is_some_and(|job| cache.holds(job.key)) {
-                self.prefetch_jobs.pop();
-            }
-            if cache.room_to_prefetch(self.held) {
-                // Never more than the queue keeps (below): making 20,000
-                // jobs to keep 1,024 is the cost its cap removes.
-                let next = self.prefetch_jobs.iter().rev().filter(|job| !cache.holds(job.key));
-                jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
-            }
-        }
-        // A chunk that failed waits for its retry; one no longer asked for
-        // is forgotten.
-        if !self.failed.is_empty() {
-            let asked: HashSet<ChunkKey> = jobs.iter().map(|job| job.key).collect();
-            self.failed.retain(|key, _| asked.contains(key));
-            let failed = &self.failed;
-            jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
-        }
-        if jobs.len() > MAX_QUEUED_JOBS {
-            jobs.select_nth_unstable_by(MAX_QUEUED_JOBS, |a, b| b.cmp(a));
-            jobs.truncate(MAX_QUEUED_JOBS);
-        }
-        if let Ok(mut state) = self.meshing.state.lock() {
-            state.queue.clear();
-            let JobState { queue, running, .. } = &mut *state;
-            queue.extend(jobs.into_iter().filter(|job| !running.contains_key(&job.key)));
-            state.voxels = Some((self.voxels.clone(), self.generation));
-        }
-        self.scratch = SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs, stand_in_climbs };
-        self.spawn_workers();
-        self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
     }
 
     /// Starts workers until every meshing thread has one or the queue is
@@ -2247,7 +2107,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let max_lod = self.tree.max_lod();
         let frame = self.frame;
         let cache = &mut self.cache;
-        let keep = &self.keep;
+        let nothing_kept = HashSet::default();
+        let keep = self.selection.as_deref().map_or(&nothing_kept, |selection| &selection.keep);
         if frame.is_multiple_of(10) {
             let limit = cache.free_after_frames;
             cache.retain_columns(|column, cached| {
@@ -2292,79 +2153,22 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 }
 
-/// A drawn column's slot in the cache and lowest surface radius (`None`:
-/// behind the horizon), as the selection's leaf loop finds them. Small on
-/// purpose: the drawn list is sorted and filtered every frame, and moving
-/// the column's sides with it was a fifth of the selection's time.
-type KnownDraw = (usize, Option<f64>);
-
-/// The sets [`Streamer::select`] fills each frame.
-#[derive(Default)]
-struct SelectScratch {
-    /// Stand-ins drawn for leaves not ready.
-    ancestors: HashSet<ChunkColumn>,
-    /// Columns drawn for hidden leaves.
-    hidden_tops: HashSet<ChunkColumn>,
-    /// The columns drawn.
-    drawn_set: HashSet<ChunkColumn>,
-    /// Columns whose jobs are listed.
-    seen: HashSet<ChunkColumn>,
-    /// The column a hidden leaf under each of these parents is drawn as
-    /// (`None`: the parent is not hidden, the leaf is drawn itself).
-    climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
-    /// The nearest ready ancestor of the leaves under each of these
-    /// parents that are not ready (`None`: a hole).
-    stand_in_climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
-}
-
-/// Why a visible leaf is drawn as a coarser ancestor of its own.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Hidden {
-    /// It is not: drawn as itself.
-    No,
-    /// Behind the terrain's horizon.
-    BehindHorizon,
-    /// Under the opaque sea.
-    UnderSea,
-}
-
-/// Whether `sea` hides `column`: it or an ancestor is sea bed wholly under
-/// the sea's hiding depth ([`VoxelSource::sea_bed_below`]). Remembered in
-/// `memo`, ancestors first (a hidden parent hides its children for free).
-fn under_sea<S: VoxelSource + ?Sized>(
-    voxels: &S,
-    sea: OpaqueSea,
-    memo: &mut HashMap<ChunkColumn, bool>,
-    column: ChunkColumn,
-    max_lod: u8,
-) -> bool {
-    if let Some(&known) = memo.get(&column) {
-        return known;
-    }
-    let hidden = (column.lod < max_lod && parent(column).is_some_and(|up| under_sea(voxels, sea, memo, up, max_lod)))
-        || voxels.sea_bed_below(column, sea.radius - sea.hiding_depth).unwrap_or(false);
-    memo.insert(column, hidden);
-    hidden
-}
-
 /// The draw constants of `column` when `around` is drawn across its
 /// sides: the error it morphs towards and, per side, a skirt as deep as
 /// the LOD drawn across that side needs (none next to the same LOD, whose
-/// boundary vertices are shared exactly).
-fn chunk_draw<S: VoxelSource + ?Sized>(
+/// boundary vertices are shared exactly). No side is told to look away
+/// from the eye yet ([`ColumnSides::back_sides`]).
+pub(crate) fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,
-    sides: &ColumnSides,
     around: &[Across; 4],
     options: DrawOptions,
-    eye: nebula_math::DVec3,
 ) -> ChunkDraw {
     let layout = voxels.layout();
     let parent_error = match options.morph {
         MorphRule::Own => voxels.geometric_error(column.lod),
         _ => layout.merge_error(column.lod),
     };
-    let hidden_sides = if options.cull_back_sides { sides.back_sides(eye) } else { 0 };
     let mut skirt_depths = [0.0f32; 4];
     if options.skirts {
         for (depth, across) in skirt_depths.iter_mut().zip(around) {
@@ -2379,12 +2183,12 @@ fn chunk_draw<S: VoxelSource + ?Sized>(
             *depth = skirt_depth(voxels, column.lod, other) as f32;
         }
     }
-    ChunkDraw { parent_error, skirt_depths, hidden_sides }
+    ChunkDraw { parent_error, skirt_depths, hidden_sides: 0 }
 }
 
 /// What is drawn across one side of a drawn column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Across {
+pub(crate) enum Across {
     /// Nothing (out of view).
     Nothing,
     /// The column of the same LOD, or a coarser one holding it.
@@ -2393,16 +2197,17 @@ enum Across {
     Finer(ChunkColumn),
 }
 
-/// What is drawn across each side of a column (`sides`), given the drawn
-/// columns and every ancestor of one (`above`; empty, finer columns and
-/// none are not told apart).
-fn drawn_across(
-    sides: &ColumnSides,
+/// What is drawn across each side of a column, given the columns of its
+/// LOD across its sides ([`ColumnSides::across`]), the drawn columns and
+/// every ancestor of one (`above`; empty, finer columns and none are not
+/// told apart).
+pub(crate) fn drawn_across(
+    across: &[Option<ChunkColumn>; 4],
     drawn: &HashSet<ChunkColumn>,
     above: &HashSet<ChunkColumn>,
     max_lod: u8,
 ) -> [Across; 4] {
-    sides.across.map(|across| {
+    across.map(|across| {
         let Some(across) = across else { return Across::Nothing };
         if drawn.contains(&across) {
             return Across::Drawn(across);
@@ -2425,8 +2230,8 @@ fn drawn_across(
 /// ([`SeamStrategy`]): lowers fallback skirts on both sides of every seam
 /// with an unsettled column, as deep as the LODs drawn and meshed for
 /// there need (with stitches, no skirt elsewhere), counts the unsettled
-/// columns and returns the relations to mesh each drawn column for and the
-/// jobs that mesh the unsettled chunks again.
+/// columns and returns the jobs that mesh the unsettled chunks again for
+/// the LODs drawn around them ([`relations_across`]).
 ///
 /// A side with nothing drawn across (out of view) wants a mesh made for
 /// the same LOD there: its own faces in the boundary plane. (Taking any
@@ -2442,27 +2247,20 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
     seams: SeamStrategy,
     options: DrawOptions,
     priority: &impl Fn(ChunkColumn) -> f64,
-) -> (Vec<SideRelations>, Vec<Job>) {
+) -> Vec<Job> {
     let max_lod = voxels.layout().max_lod();
     let cached = |index: usize| {
         let column = draw.columns[index].0;
         slots[index].and_then(|slot| cache.columns.in_slot(slot, column)).or_else(|| cache.columns.get(&column))
     };
     let mut masks = Vec::with_capacity(draw.columns.len());
-    let mut relations_drawn = Vec::with_capacity(draw.columns.len());
     // Unsettled columns, and every ancestor of one, with the coarsest LOD
     // their meshes were made for.
     let mut unsettled: HashMap<ChunkColumn, u8> = HashMap::default();
     let mut jobs = Vec::new();
     for (index, around) in arounds.iter().enumerate() {
         let column = draw.columns[index].0;
-        let relations = around.map(|across| match across {
-            Across::Drawn(other) if other.lod > column.lod => {
-                nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff: other.lod - column.lod }
-            }
-            Across::Finer(_) => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
-            _ => nebula_lod::NeighborLodRelation::Same,
-        });
+        let relations = relations_across(column, around);
         let mut mask = 0u8;
         let mut coarsest = column.lod;
         for (layer, chunk) in cached(index).into_iter().flat_map(|c| c.chunks.iter()) {
@@ -2477,7 +2275,6 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
         if mask != 0 {
             unsettled.insert(column, coarsest);
         }
-        relations_drawn.push(relations);
         masks.push(mask);
     }
     let mut unsettled_above: HashMap<ChunkColumn, u8> = HashMap::default();
@@ -2514,7 +2311,25 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
             chunk_draw.skirt_depths[side] = chunk_draw.skirt_depths[side].max(depth);
         }
     }
-    (relations_drawn, jobs)
+    jobs
+}
+
+/// The LODs a drawn column's meshes are made for when `around` is drawn
+/// across its sides.
+pub(crate) fn relations_across(column: ChunkColumn, around: &[Across; 4]) -> SideRelations {
+    around.map(|across| match across {
+        Across::Drawn(other) if other.lod > column.lod => {
+            nebula_lod::NeighborLodRelation::HigherThanNeighbor { lod_diff: other.lod - column.lod }
+        }
+        Across::Finer(_) => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
+        _ => nebula_lod::NeighborLodRelation::Same,
+    })
+}
+
+/// The columns of `column`'s LOD across its sides (as in
+/// `FaceDirection::HORIZONTAL`; none across the edge of the lattice).
+pub(crate) fn columns_across(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> [Option<ChunkColumn>; 4] {
+    FaceDirection::HORIZONTAL.map(|side| side.face_edge().map(|edge| layout.neighbor(column.chunk(0), edge).column()))
 }
 
 /// A column's sides, worked out once per column: the outermost lattice
@@ -2524,10 +2339,10 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
 /// `FaceDirection::HORIZONTAL`; finding it across a cube edge was a tenth
 /// of the selection's time, every drawn column every frame).
 #[derive(Clone, Copy, Debug)]
-struct ColumnSides {
+pub(crate) struct ColumnSides {
     i: [nebula_math::DVec3; 2],
     j: [nebula_math::DVec3; 2],
-    across: [Option<ChunkColumn>; 4],
+    pub(crate) across: [Option<ChunkColumn>; 4],
 }
 
 impl ColumnSides {
@@ -2537,8 +2352,7 @@ impl ColumnSides {
         let planes = |along_u: bool, first: i64| {
             [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
         };
-        let across = FaceDirection::HORIZONTAL
-            .map(|side| side.face_edge().map(|edge| layout.neighbor(column.chunk(0), edge).column()));
+        let across = columns_across(layout, column);
         Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size), across }
     }
 

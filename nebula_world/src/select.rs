@@ -1,0 +1,645 @@
+//! The frame's selection (see the [`stream`](crate::stream) module docs):
+//! what to draw, how deep each drawn side's skirt hangs and what to mesh
+//! next, worked out as a [`Plan`] from a frozen view of the streamer (its
+//! tree, its cached columns, the edits it awaits), so that the LOD thread
+//! can make it while the game draws the frame before, and the frame thread
+//! only applies it ([`Streamer::update`](crate::stream::Streamer::update)).
+//!
+//! A plan made ahead is made for a predicted eye: whatever depends on
+//! where the eye is holds for every eye within a margin of it (the horizon
+//! hides only what it hides from all of them, the sea only when all of them
+//! are above it), and the walls that look away from the eye are told by
+//! the frame thread, for the eye that came.
+
+use std::time::Instant;
+
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
+
+use nebula_lod::{Camera, CullMargin, Frustum, Horizon, LodTree, NodeBounds, children, parent};
+use nebula_math::{DVec3, FaceEdge};
+use nebula_voxel::{ChunkColumn, ChunkKey, LayerView, VoxelSource};
+
+use crate::seams::{SAME_ALL_ROUND, SeamStrategy, side_relations};
+use crate::stream::{
+    Across, CachedColumn, ColumnStore, DrawList, DrawOptions, Failure, Job, MAX_QUEUED_JOBS, MAX_SEA_BED_MEMO,
+    MeshHandle, OpaqueSea, PREFETCH_MAX_AGE_FRAMES, PREFETCH_REFRESH_FRAMES, STAND_IN_LEVEL_STEP, Tier, chunk_draw,
+    column_layers, drawn_across, relations_across,
+};
+
+/// How much wider than the camera's own a plan made ahead for a predicted
+/// camera draws its view, degrees (and a tenth of the eye's margin,
+/// metres): the camera that came was up to about half a degree and a few
+/// metres off the prediction in a 1 km/s flight at 10 frames a second. The
+/// plan cannot serve a camera that sees past it (the frame thread plans
+/// again), and the wider, the more is drawn out of sight.
+const PLANNED_VIEW_ANGLE_DEGREES: f64 = 1.0;
+
+/// What the selection keeps from frame to frame: moved to the LOD thread
+/// with each request for a plan and back with the plan.
+pub(crate) struct Selection {
+    /// Sets filled each frame, kept for their allocations.
+    scratch: SelectScratch,
+    /// Columns known to lie under the streamer's sea, or not.
+    pub(crate) under_sea: HashMap<ChunkColumn, bool>,
+    /// Prefetch jobs not done yet, from the last prefetch refresh.
+    pub(crate) prefetch_jobs: Vec<Job>,
+    /// Frame of the last prefetch refresh (0: none yet, or asked again),
+    /// and whether the tree changed since.
+    pub(crate) prefetched_at: u64,
+    pub(crate) tree_changed: bool,
+    /// What the last prefetch refresh keeps: freed last, never for age.
+    pub(crate) keep: HashSet<ChunkColumn>,
+    /// Whether the last selection asked for meshes of the view:
+    /// prefetching waits until it does not.
+    pub(crate) view_busy: bool,
+}
+
+impl Selection {
+    /// Before the first frame: the prefetch set is made once the view is
+    /// meshed.
+    pub(crate) fn new() -> Self {
+        Self {
+            scratch: SelectScratch::default(),
+            under_sea: HashMap::default(),
+            prefetch_jobs: Vec::new(),
+            prefetched_at: 0,
+            tree_changed: true,
+            keep: HashSet::default(),
+            view_busy: true,
+        }
+    }
+}
+
+/// The sets [`plan`] fills each frame.
+#[derive(Default)]
+struct SelectScratch {
+    /// Stand-ins drawn for leaves not ready.
+    ancestors: HashSet<ChunkColumn>,
+    /// Columns drawn for hidden leaves.
+    hidden_tops: HashSet<ChunkColumn>,
+    /// The columns drawn.
+    drawn_set: HashSet<ChunkColumn>,
+    /// Columns whose jobs are listed.
+    seen: HashSet<ChunkColumn>,
+    /// The column a hidden leaf under each of these parents is drawn as
+    /// (`None`: the parent is not hidden, the leaf is drawn itself).
+    climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
+    /// The nearest ready ancestor of the leaves under each of these
+    /// parents that are not ready (`None`: a hole).
+    stand_in_climbs: HashMap<ChunkColumn, Option<ChunkColumn>>,
+}
+
+/// The streamer's settings a plan is made with, and the eye it is made
+/// for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SelectSettings {
+    /// The frame the plan is for.
+    pub(crate) frame: u64,
+    pub(crate) view: LayerView,
+    pub(crate) seams: SeamStrategy,
+    pub(crate) sea: Option<OpaqueSea>,
+    pub(crate) options: DrawOptions,
+    /// [`MeshCache::prefetch`](crate::stream::MeshCache::prefetch).
+    pub(crate) prefetch: bool,
+    /// Whether the cache had room to prefetch after the last frame's
+    /// frees.
+    pub(crate) room_to_prefetch: bool,
+    /// The camera the plan is made for, and how far from its eye the eye
+    /// it is drawn from may be, metres (0: made for the camera that came).
+    pub(crate) camera: Camera,
+    pub(crate) eye_margin: f64,
+}
+
+/// What a plan is made from: the streamer as it was after the last frame.
+pub(crate) struct SelectInput<'a, S: ?Sized, H> {
+    pub(crate) voxels: &'a S,
+    pub(crate) tree: &'a LodTree,
+    pub(crate) columns: &'a ColumnStore<H>,
+    /// Drawn chunks an edit changed, and the voxel generation awaited.
+    pub(crate) stale: &'a HashMap<ChunkKey, u64>,
+    /// Of those, the layers a change of view added.
+    pub(crate) gained: &'a HashSet<ChunkKey>,
+    /// Chunks whose meshing failed.
+    pub(crate) failed: &'a HashMap<ChunkKey, Failure>,
+    pub(crate) settings: SelectSettings,
+}
+
+/// A frame's selection, to apply to the streamer it was made from.
+pub(crate) struct Plan<H> {
+    /// What to draw: skirts for the LODs drawn around each column, no
+    /// back sides told yet.
+    pub(crate) draw: DrawList,
+    /// The cache slot of each drawn column, in the draw list's order.
+    pub(crate) slots: Vec<Option<usize>>,
+    /// What is drawn across each side of each drawn column (only with a
+    /// seam strategy that meshes for the neighbours).
+    pub(crate) arounds: Vec<[Across; 4]>,
+    /// Cached columns drawn or wanted this frame, by slot.
+    pub(crate) used: Vec<(usize, ChunkColumn)>,
+    /// Columns wanted and not in the cache yet, with their layers read.
+    pub(crate) new_columns: Vec<CachedColumn<H>>,
+    /// Chunks awaited after an edit in columns no longer drawn: dropped,
+    /// meshed again when needed.
+    pub(crate) dropped_stale: Vec<ChunkKey>,
+    /// Meshing jobs, the most urgent [`MAX_QUEUED_JOBS`] (those of failed
+    /// chunks waiting for their retry left out).
+    pub(crate) jobs: Vec<Job>,
+    /// Failed chunks no longer asked for: forgotten.
+    pub(crate) forget_failed: Vec<ChunkKey>,
+    /// The bounds of leaves in view that the plan draws nothing for: those
+    /// the planned view does not hold, and those at its edge not meshed
+    /// with no stand-in near. It cannot serve a camera that sees one.
+    pub(crate) unseen: Vec<NodeBounds>,
+    /// Milliseconds the plan took to make.
+    pub(crate) millis: f64,
+}
+
+/// Why a visible leaf is drawn as a coarser ancestor of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Hidden {
+    /// It is not: drawn as itself.
+    No,
+    /// Behind the terrain's horizon.
+    BehindHorizon,
+    /// Under the opaque sea.
+    UnderSea,
+}
+
+/// A drawn column's slot in the cache and lowest surface radius (`None`:
+/// behind the horizon), as the leaf loop finds them. Small on purpose: the
+/// drawn list is sorted and filtered every frame, and moving the column's
+/// sides with it was a fifth of the selection's time.
+type KnownDraw = (usize, Option<f64>);
+
+/// A job's priority: its column's projected voxel edge (largest first:
+/// coarse-first and nearest-first), from its bounds where known.
+pub(crate) fn job_priority<S: VoxelSource + ?Sized>(
+    voxels: &S,
+    tree: &LodTree,
+    eye: DVec3,
+    column: ChunkColumn,
+    bounds: Option<&NodeBounds>,
+) -> f64 {
+    let distance = bounds.or_else(|| tree.node_bounds(column)).map_or(f64::INFINITY, |b| b.distance(eye)).max(1e-3);
+    voxels.layout().voxel_edge(column.lod) * tree.screen_space().k() / distance
+}
+
+/// Chooses what to draw (see the module docs of [`crate::stream`]), the
+/// skirt depth of every drawn side, and the meshing jobs, by priority.
+#[allow(clippy::too_many_lines)]
+pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
+    input: &SelectInput<'_, S, H>,
+    selection: &mut Selection,
+) -> Plan<H> {
+    let start = Instant::now();
+    let SelectInput { voxels, tree, columns, stale, gained, failed, settings } = *input;
+    let SelectSettings { frame, view, seams, sea, options, prefetch, room_to_prefetch, camera, eye_margin } = settings;
+    let eye = camera.position;
+    // The view planned for, where it is planned with a margin around the
+    // camera: a little wider than the camera's own, so that the camera
+    // that comes, a little off the prediction, seldom sees past it.
+    let views = (eye_margin > 0.0).then(|| {
+        let fov = tree.settings().fov_y_degrees;
+        let margin = CullMargin { angle: PLANNED_VIEW_ANGLE_DEGREES.to_radians(), distance: 0.1 * eye_margin };
+        (Frustum::new(&camera, fov), Frustum::with_margin(&camera, fov, margin))
+    });
+    let mut unseen = Vec::new();
+    // Stand-ins for leaves at the planned view's edge, and those leaves.
+    let mut edge_stand_ins: HashMap<ChunkColumn, Vec<(ChunkColumn, NodeBounds)>> = HashMap::default();
+    let layout = voxels.layout();
+    let max_lod = layout.max_lod();
+    let Selection { scratch, under_sea: memo, prefetch_jobs, prefetched_at, tree_changed, keep, view_busy } = selection;
+    let SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs, stand_in_climbs } = scratch;
+    climbs.clear();
+    stand_in_climbs.clear();
+    ancestors.clear();
+    hidden_tops.clear();
+    drawn_set.clear();
+    seen.clear();
+    let ready = |column: ChunkColumn| columns.get(&column).is_some_and(|c| c.ready(column, stale));
+    let holds = |key: ChunkKey| columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer));
+    let mut used = Vec::new();
+    // The drawn columns, with their slot and lowest surface radius
+    // (`None` behind the horizon) where the leaf loop has them at hand
+    // (`None`: looked up when the draw list is made).
+    let mut drawn: Vec<(ChunkColumn, Option<KnownDraw>)> = Vec::new();
+    // Columns to mesh, with their bounds where the leaf loop has them.
+    let mut wanted: Vec<(ChunkColumn, Option<&NodeBounds>)> = Vec::new();
+    let priority_within =
+        |column: ChunkColumn, bounds: Option<&NodeBounds>| job_priority(voxels, tree, eye, column, bounds);
+    let priority = |column: ChunkColumn| priority_within(column, None);
+    // The LODs a new mesh is made for: the tree's around a leaf (what
+    // will be drawn once the view settles), the same all round for a
+    // stand-in; a drawn column's are checked against what is drawn.
+    let predicted = |column: ChunkColumn| match seams.meshes_for_neighbours() {
+        true => tree.context(column).map_or(SAME_ALL_ROUND, |context| side_relations(&context)),
+        false => SAME_ALL_ROUND,
+    };
+    let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
+    // Leaves behind the terrain's horizon are drawn as their coarsest
+    // ancestor that is hidden too: a few coarse chunks where the selection
+    // has thousands the eye cannot see. Coarse, not left out: where a
+    // coarse stand-in in front dips below that horizon, what shows through
+    // is coarse, never a hole. Hidden from every eye within the margin:
+    // the occluder for the farthest of them (it sees farthest round, so
+    // over the coarsest LODs, the lowest sphere), its horizon widened.
+    let distance = eye.length();
+    let farthest = if distance > 0.0 { eye * ((distance + eye_margin) / distance) } else { eye };
+    let occluder = tree.horizon_occluder(voxels, farthest);
+    let horizon = occluder.map(|r| Horizon::around(eye, eye_margin, r));
+    let behind = |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
+    let bounds_behind = |bounds: &NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
+    // The same for leaves under an opaque sea, seen from above it.
+    let sea = sea.filter(|sea| distance - eye_margin > sea.radius);
+    if memo.len() > MAX_SEA_BED_MEMO {
+        memo.clear();
+    }
+    // Whether the sea hides `column`; when `climbing` to it as a stand-in,
+    // it must have the sea bed all round too: a coarse stand-in next to a
+    // leaf drawn in detail would lower the ground beside that leaf and
+    // bare its skirt, which takes the leaf's material (never sea bed at a
+    // coast, so no water over it).
+    let mut sea_hides = |column: ChunkColumn, climbing: bool| {
+        sea.is_some_and(|sea| {
+            under_sea(voxels, sea, memo, column, max_lod)
+                && (!climbing
+                    || FaceEdge::ALL.iter().all(|&edge| {
+                        let across = layout.neighbor(column.chunk(0), edge).column();
+                        under_sea(voxels, sea, memo, across, max_lod)
+                    }))
+        })
+    };
+    // What is drawn for a leaf (with its bounds when known): itself, or
+    // its coarsest ancestor hidden too (behind the horizon or under the
+    // sea), and why.
+    let mut drawn_for = |leaf: ChunkColumn, bounds: Option<&NodeBounds>| -> (ChunkColumn, Hidden) {
+        let hidden = if bounds.map_or_else(|| behind(leaf), bounds_behind) {
+            Hidden::BehindHorizon
+        } else if sea_hides(leaf, false) {
+            Hidden::UnderSea
+        } else {
+            return (leaf, Hidden::No);
+        };
+        // Siblings, hidden alike, climb from the same parent: once a frame
+        // for all of them.
+        let Some(first) = parent(leaf).filter(|_| leaf.lod < max_lod) else { return (leaf, hidden) };
+        let mut hides = |column: ChunkColumn| behind(column) || sea_hides(column, true);
+        let top = *climbs.entry(first).or_insert_with(|| {
+            if !hides(first) {
+                return None;
+            }
+            let mut top = first;
+            while let Some(up) = parent(top).filter(|&up| top.lod < max_lod && hides(up)) {
+                top = up;
+            }
+            Some(top)
+        });
+        (top.unwrap_or(leaf), hidden)
+    };
+    let (mut behind_horizon, mut under_the_sea) = (0, 0);
+    for (leaf, bounds) in tree.visible_leaves_with_bounds() {
+        let (leaf, hidden) = drawn_for(leaf, Some(bounds));
+        match hidden {
+            Hidden::No => {}
+            Hidden::BehindHorizon => behind_horizon += 1,
+            Hidden::UnderSea => under_the_sea += 1,
+        }
+        // The planned view's edge (what it adds to the camera's own), and
+        // what it does not hold (the cull's margin holds it for a camera
+        // that comes off the prediction): nothing is drawn or meshed for
+        // that, and the plan serves no camera that sees it (hidden from
+        // every eye within the margin, none sees it).
+        let edge = match &views {
+            Some((_, planned)) if planned.excludes(bounds) => {
+                if hidden == Hidden::No {
+                    unseen.push(*bounds);
+                }
+                continue;
+            }
+            Some((own, _)) => own.excludes(bounds),
+            None => false,
+        };
+        if hidden != Hidden::No && !hidden_tops.insert(leaf) {
+            continue;
+        }
+        if let Some((slot, cached)) = columns.slot(&leaf)
+            && cached.ready(leaf, stale)
+        {
+            // In use even when a stand-in covering it is drawn instead (a
+            // sibling is not ready): never freed while it is a leaf.
+            used.push((slot, leaf));
+            let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
+            drawn.push((leaf, known));
+            continue;
+        }
+        wanted.push((leaf, (hidden == Hidden::No).then_some(bounds)));
+        if let Some(finer) = children(leaf)
+            && finer.iter().all(|&c| ready(c))
+        {
+            stand_ins += 1;
+            drawn.extend(finer.map(|c| (c, None)));
+            continue;
+        }
+        // The nearest ready ancestor, and the stand-ins on the way up
+        // wanted: the same for every sibling, so climbed once a frame from
+        // their parent (thousands of leaves wait for meshes at once in a
+        // fast flight).
+        let climb = |wanted: &mut Vec<_>| {
+            let mut ancestor = leaf;
+            while ancestor.lod < max_lod {
+                let Some(up) = parent(ancestor) else { break };
+                ancestor = up;
+                if ready(ancestor) {
+                    return Some(ancestor);
+                }
+                if (ancestor.lod - leaf.lod).is_multiple_of(STAND_IN_LEVEL_STEP) {
+                    wanted.push((ancestor, None));
+                }
+            }
+            None
+        };
+        let found = match parent(leaf).filter(|_| leaf.lod < max_lod) {
+            Some(first) => *stand_in_climbs.entry(first).or_insert_with(|| climb(&mut wanted)),
+            None => climb(&mut wanted),
+        };
+        // At the planned view's edge, a stand-in is drawn only where it
+        // stands for nothing else drawn (below): no detail in view is drawn
+        // coarse for a leaf the camera most likely does not see.
+        if edge {
+            match found.filter(|ancestor| !ancestors.contains(ancestor)) {
+                Some(ancestor) => edge_stand_ins.entry(ancestor).or_default().push((leaf, *bounds)),
+                None if found.is_none() => unseen.push(*bounds),
+                None => stand_ins += 1,
+            }
+            continue;
+        }
+        stand_ins += 1;
+        if let Some(ancestor) = found {
+            max_levels = max_levels.max(ancestor.lod - leaf.lod);
+            ancestors.insert(ancestor);
+        } else {
+            holes += 1;
+        }
+    }
+    // Out of view: every leaf the tree holds (as it would be drawn) and its
+    // stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's work
+    // and kept, so a turn of the camera finds them meshed.
+    let age = frame.saturating_sub(*prefetched_at);
+    // Not while the view has work of its own: a cold start or a fast
+    // flight spends the frame thread and the workers on what is seen.
+    let refresh = prefetch
+        && !*view_busy
+        && (*prefetched_at == 0 || (*tree_changed && age >= PREFETCH_REFRESH_FRAMES) || age >= PREFETCH_MAX_AGE_FRAMES);
+    if refresh {
+        *prefetched_at = frame;
+        *tree_changed = false;
+        let mut kept: HashSet<ChunkColumn> = HashSet::default();
+        for leaf in tree.leaf_columns() {
+            let (column, _) = drawn_for(leaf, None);
+            if kept.insert(column) {
+                let mut up = column;
+                for _ in 0..STAND_IN_LEVEL_STEP {
+                    match parent(up).filter(|_| up.lod < max_lod) {
+                        Some(coarser) => up = coarser,
+                        None => break,
+                    }
+                }
+                kept.insert(up);
+            }
+        }
+        prefetch_jobs.clear();
+        for &column in &kept {
+            let layers = match columns.get(&column) {
+                Some(cached) => cached.layers.clone(),
+                None => column_layers(voxels, tree, column, view),
+            };
+            let priority = priority(column);
+            prefetch_jobs.extend(
+                layers.into_iter().map(|layer| column.chunk(layer)).filter(|&key| !holds(key)).map(|key| Job {
+                    tier: Tier::Prefetch,
+                    priority,
+                    key,
+                    seams,
+                    relations: predicted(column),
+                }),
+            );
+        }
+        // The most urgent last: meshed jobs come off its end.
+        prefetch_jobs.sort_unstable();
+        *keep = kept;
+    } else if !prefetch {
+        prefetch_jobs.clear();
+        keep.clear();
+    }
+    // A drawn ancestor covers everything under it.
+    for (ancestor, leaves) in edge_stand_ins.drain() {
+        let holds = |column: ChunkColumn| {
+            let up = ancestor.lod.checked_sub(column.lod).filter(|&up| up > 0 && up < 32);
+            up.is_some_and(|up| {
+                column.face == ancestor.face && column.x >> up == ancestor.x && column.y >> up == ancestor.y
+            })
+        };
+        if drawn.iter().any(|&(column, _)| holds(column)) || ancestors.iter().any(|&column| holds(column)) {
+            unseen.extend(leaves.iter().map(|&(_, bounds)| bounds));
+        } else {
+            stand_ins += leaves.len();
+            for (leaf, _) in leaves {
+                max_levels = max_levels.max(ancestor.lod - leaf.lod);
+            }
+            ancestors.insert(ancestor);
+        }
+    }
+    let covered = |column: ChunkColumn| {
+        let mut c = column;
+        while c.lod < max_lod {
+            let Some(up) = parent(c) else { break };
+            c = up;
+            if ancestors.contains(&c) {
+                return true;
+            }
+        }
+        false
+    };
+    if !ancestors.is_empty() {
+        drawn.retain(|&(c, _)| !covered(c));
+        drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
+    }
+    drawn.sort_unstable_by_key(|&(c, _)| c);
+    drawn.dedup_by_key(|&mut (c, _)| c);
+    let mut draw = DrawList {
+        behind_horizon,
+        under_sea: under_the_sea,
+        occluder_radius: occluder.unwrap_or(f64::NAN),
+        holes,
+        stand_ins,
+        max_stand_in_levels: max_levels,
+        ..DrawList::default()
+    };
+    drawn_set.extend(drawn.iter().map(|&(c, _)| c));
+    let set = &*drawn_set;
+    // With meshes made for their neighbours: every ancestor of a drawn
+    // column (a side whose same-LOD neighbour is one meets finer ones).
+    let mut above = HashSet::default();
+    if seams.meshes_for_neighbours() {
+        for &(column, _) in &drawn {
+            let mut c = column;
+            while let Some(up) = parent(c).filter(|_| c.lod < max_lod) {
+                if !above.insert(up) {
+                    break;
+                }
+                c = up;
+            }
+        }
+    }
+    let mut arounds = Vec::new();
+    let mut slots = Vec::with_capacity(drawn.len());
+    let mut min_radius = f64::INFINITY;
+    let mut max_lod_diff = 0;
+    draw.columns = drawn
+        .iter()
+        .map(|&(column, known)| {
+            let known = known.and_then(|(slot, low)| {
+                columns.in_slot(slot, column).map(|cached| (Some(slot), cached.sides.across, low))
+            });
+            let (slot, across, low) = known.unwrap_or_else(|| {
+                let (slot, across) = match columns.slot(&column) {
+                    Some((slot, cached)) => {
+                        used.push((slot, column));
+                        (Some(slot), cached.sides.across)
+                    }
+                    None => (None, crate::stream::columns_across(layout, column)),
+                };
+                // The tree's cached bounds; a stand-in the tree merged away
+                // asks the source (noise) once here. A coarse chunk drawn
+                // behind the horizon is left out: its voxels round the
+                // surface far down, and the terrain in front hides it.
+                let bounds = tree.node_bounds(column);
+                let low = bounds
+                    .map(|b| b.min_radius)
+                    .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
+                    .filter(|_| !bounds.is_some_and(bounds_behind));
+                (slot, across, low)
+            });
+            if let Some(low) = low {
+                min_radius = min_radius.min(low);
+            }
+            slots.push(slot);
+            let around = drawn_across(&across, set, &above, max_lod);
+            if seams.meshes_for_neighbours() {
+                arounds.push(around);
+            }
+            for across in around {
+                if let Across::Drawn(other) = across {
+                    max_lod_diff = max_lod_diff.max(other.lod - column.lod);
+                }
+            }
+            (column, chunk_draw(voxels, column, &around, options))
+        })
+        .collect();
+    draw.min_surface_radius = min_radius;
+    draw.max_lod_diff = max_lod_diff;
+    // The LODs a drawn column is meshed for: those drawn around it.
+    let drawn_relations = |column: ChunkColumn| {
+        let index = draw.columns.binary_search_by_key(&column, |&(c, _)| c).ok()?;
+        arounds.get(index).map(|around| relations_across(column, around))
+    };
+
+    // Jobs: every chunk of a wanted column not meshed and not running, the
+    // largest projected voxel first.
+    let mut jobs = Vec::new();
+    let mut new_columns = Vec::new();
+    for (column, bounds) in wanted {
+        if !seen.insert(column) {
+            continue;
+        }
+        let priority = priority_within(column, bounds);
+        let relations = predicted(column);
+        let job = |layer| Job { tier: Tier::View, priority, key: column.chunk(layer), seams, relations };
+        match columns.slot(&column) {
+            Some((slot, cached)) => {
+                used.push((slot, column));
+                jobs.extend(cached.layers.iter().filter(|&&layer| !cached.chunks.contains(layer)).map(|&l| job(l)));
+            }
+            None => {
+                let cached = CachedColumn::new(voxels, tree, column, frame, view);
+                jobs.extend(cached.layers.iter().map(|&l| job(l)));
+                new_columns.push(cached);
+            }
+        }
+    }
+    // Drawn chunks an edit changed go first: the player is looking at
+    // them. One no longer drawn is dropped, to be meshed when needed.
+    let mut dropped_stale = Vec::new();
+    for &key in stale.keys() {
+        if !set.contains(&key.column()) {
+            dropped_stale.push(key);
+            continue;
+        }
+        let priority = if gained.contains(&key) { priority(key.column()) } else { f64::MAX };
+        let relations = drawn_relations(key.column()).unwrap_or_else(|| predicted(key.column()));
+        jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
+    }
+    // Prefetching only while there is room for it: what the view needs is
+    // never evicted for it. (A chunk waiting to retry a failure does not
+    // hold prefetching up.)
+    *view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+    if !*view_busy {
+        while prefetch_jobs.last().is_some_and(|job| holds(job.key)) {
+            prefetch_jobs.pop();
+        }
+        if room_to_prefetch {
+            // Never more than the queue keeps (below): making 20,000 jobs
+            // to keep 1,024 is the cost its cap removes.
+            let next = prefetch_jobs.iter().rev().filter(|job| !holds(job.key));
+            jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
+        }
+    }
+    // A chunk that failed waits for its retry; one no longer asked for is
+    // forgotten.
+    let mut forget_failed = Vec::new();
+    if !failed.is_empty() {
+        let asked: HashSet<ChunkKey> = jobs.iter().map(|job| job.key).collect();
+        forget_failed.extend(failed.keys().filter(|key| !asked.contains(key)));
+        jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
+    }
+    keep_most_urgent(&mut jobs);
+    Plan {
+        draw,
+        slots,
+        arounds,
+        used,
+        new_columns,
+        dropped_stale,
+        jobs,
+        forget_failed,
+        unseen,
+        millis: start.elapsed().as_secs_f64() * 1e3,
+    }
+}
+
+/// Keeps the [`MAX_QUEUED_JOBS`] most urgent of `jobs`.
+pub(crate) fn keep_most_urgent(jobs: &mut Vec<Job>) {
+    if jobs.len() > MAX_QUEUED_JOBS {
+        jobs.select_nth_unstable_by(MAX_QUEUED_JOBS, |a, b| b.cmp(a));
+        jobs.truncate(MAX_QUEUED_JOBS);
+    }
+}
+
+/// Whether `sea` hides `column`: it or an ancestor is sea bed wholly under
+/// the sea's hiding depth ([`VoxelSource::sea_bed_below`]). Remembered in
+/// `memo`, ancestors first (a hidden parent hides its children for free).
+fn under_sea<S: VoxelSource + ?Sized>(
+    voxels: &S,
+    sea: OpaqueSea,
+    memo: &mut HashMap<ChunkColumn, bool>,
+    column: ChunkColumn,
+    max_lod: u8,
+) -> bool {
+    if let Some(&known) = memo.get(&column) {
+        return known;
+    }
+    let hidden = (column.lod < max_lod && parent(column).is_some_and(|up| under_sea(voxels, sea, memo, up, max_lod)))
+        || voxels.sea_bed_below(column, sea.radius - sea.hiding_depth).unwrap_or(false);
+    memo.insert(column, hidden);
+    hidden
+}
