@@ -104,6 +104,12 @@ pub(crate) struct SelectSettings {
     /// Whether the cache had room to prefetch after the last frame's
     /// frees.
     pub(crate) room_to_prefetch: bool,
+    /// [`MeshCache::free_after_frames`](crate::stream::MeshCache::free_after_frames).
+    pub(crate) free_after_frames: u64,
+    /// Whether the cache was near its budget after the last frame's frees
+    /// (the plan then lists what to free first, should this frame's
+    /// meshes take it past).
+    pub(crate) near_budget: bool,
     /// The camera the plan is made for, and how far from its eye the eye
     /// it is drawn from may be, metres (0: made for the camera that came).
     pub(crate) camera: Camera,
@@ -150,6 +156,12 @@ pub(crate) struct Plan<H> {
     /// the planned view does not hold, and those at its edge not meshed
     /// with no stand-in near. It cannot serve a camera that sees one.
     pub(crate) unseen: Vec<NodeBounds>,
+    /// Columns out of use for a while (listed every 10 frames): freed.
+    pub(crate) aged: Vec<(usize, ChunkColumn)>,
+    /// Near the budget, every column not used this frame, in the order to
+    /// free them should the cache be past its budget
+    /// ([`least_recently_used`]).
+    pub(crate) least_recent: Option<Vec<(usize, ChunkColumn)>>,
     /// Milliseconds the plan took to make.
     pub(crate) millis: f64,
 }
@@ -193,7 +205,19 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
 ) -> Plan<H> {
     let start = Instant::now();
     let SelectInput { voxels, tree, columns, stale, gained, failed, settings } = *input;
-    let SelectSettings { frame, view, seams, sea, options, prefetch, room_to_prefetch, camera, eye_margin } = settings;
+    let SelectSettings {
+        frame,
+        view,
+        seams,
+        sea,
+        options,
+        prefetch,
+        room_to_prefetch,
+        free_after_frames,
+        near_budget,
+        camera,
+        eye_margin,
+    } = settings;
     let eye = camera.position;
     // The view planned for, where it is planned with a margin around the
     // camera: a little wider than the camera's own, so that the camera
@@ -603,6 +627,31 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
     }
     keep_most_urgent(&mut jobs);
+    // What the frame thread frees after applying the plan (listing and
+    // sorting every column held was the step's slowest part in a frame
+    // past the budget).
+    let (mut aged, mut least_recent) = (Vec::new(), None);
+    let aging = frame.is_multiple_of(10);
+    if aging || near_budget {
+        let mut in_use = vec![false; columns.slot_bound()];
+        for &(slot, _) in &used {
+            if let Some(in_use) = in_use.get_mut(slot) {
+                *in_use = true;
+            }
+        }
+        let candidates = least_recently_used(columns, keep, max_lod, |slot, _| in_use[slot]);
+        if aging {
+            aged.extend(
+                candidates
+                    .iter()
+                    .filter(|&&(kept, last_used, _, _)| !kept && frame.saturating_sub(last_used) > free_after_frames)
+                    .map(|&(_, _, column, slot)| (slot, column)),
+            );
+        }
+        if near_budget {
+            least_recent = Some(candidates.into_iter().map(|(_, _, column, slot)| (slot, column)).collect());
+        }
+    }
     Plan {
         draw,
         slots,
@@ -613,8 +662,29 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         jobs,
         forget_failed,
         unseen,
+        aged,
+        least_recent,
         millis: start.elapsed().as_secs_f64() * 1e3,
     }
+}
+
+/// The cached columns that may be freed (not a face root, not
+/// `used_now`), in the order to free them: what the prefetch set does not
+/// keep first, the least recently used first within each; with whether it
+/// is kept, its last use and its slot.
+pub(crate) fn least_recently_used<H>(
+    columns: &ColumnStore<H>,
+    keep: &HashSet<ChunkColumn>,
+    max_lod: u8,
+    used_now: impl Fn(usize, &CachedColumn<H>) -> bool,
+) -> Vec<(bool, u64, ChunkColumn, usize)> {
+    let mut candidates: Vec<_> = columns
+        .iter_slots()
+        .filter(|&(slot, cached)| cached.column.lod != max_lod && !used_now(slot, cached))
+        .map(|(slot, cached)| (keep.contains(&cached.column), cached.last_used, cached.column, slot))
+        .collect();
+    candidates.sort_unstable();
+    candidates
 }
 
 /// Keeps the [`MAX_QUEUED_JOBS`] most urgent of `jobs`.

@@ -86,7 +86,9 @@ use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, LayerView, VoxelSource};
 use crate::lod_thread::{LodThread, Outcome, SelectRequest};
 use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
-use crate::select::{Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent};
+use crate::select::{
+    Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent, least_recently_used,
+};
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
 /// mesh (the streamer drops the handles of the meshes it frees).
@@ -243,7 +245,7 @@ pub(crate) struct CachedColumn<H> {
     missing: usize,
     held: Held,
     /// Frame it was last drawn or wanted in.
-    last_used: u64,
+    pub(crate) last_used: u64,
     /// Its wall planes and neighbours ([`ColumnSides`]).
     pub(crate) sides: ColumnSides,
 }
@@ -390,19 +392,18 @@ impl<H> ColumnStore<H> {
         self.slots.remove(column).map(|slot| self.columns.remove(slot))
     }
 
-    fn retain(&mut self, mut keep: impl FnMut(&ChunkColumn, &CachedColumn<H>) -> bool) {
-        let columns = &mut self.columns;
-        self.slots.retain(|column, &mut slot| {
-            let kept = keep(column, &columns[slot]);
-            if !kept {
-                columns.remove(slot);
-            }
-            kept
-        });
-    }
-
     fn iter(&self) -> impl Iterator<Item = (&ChunkColumn, &CachedColumn<H>)> {
         self.columns.iter().map(|(_, cached)| (&cached.column, cached))
+    }
+
+    /// Every column with its slot.
+    pub(crate) fn iter_slots(&self) -> impl Iterator<Item = (usize, &CachedColumn<H>)> {
+        self.columns.iter()
+    }
+
+    /// A bound on the slots: every slot is under it.
+    pub(crate) fn slot_bound(&self) -> usize {
+        self.columns.capacity()
     }
 }
 
@@ -473,6 +474,12 @@ impl<H: MeshHandle> MeshCache<H> {
     #[must_use]
     pub fn holds(&self, key: ChunkKey) -> bool {
         self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer))
+    }
+
+    /// Near the budget, given what is held (chunks, bytes): past 15/16 of
+    /// either (a plan then lists what to free first).
+    fn near_budget(&self, (chunks, bytes): (usize, u64)) -> bool {
+        chunks > self.max_chunks / 16 * 15 || bytes > self.max_bytes / 16 * 15
     }
 
     /// Room for prefetching, given what is held (chunks, bytes): under
@@ -550,19 +557,6 @@ impl<H: MeshHandle> MeshCache<H> {
         });
         cached.recount_missing();
         cached.held.sub(dropped);
-        self.held.sub(dropped);
-    }
-
-    /// Keeps only the columns `keep` accepts.
-    fn retain_columns(&mut self, mut keep: impl FnMut(&ChunkColumn, &CachedColumn<H>) -> bool) {
-        let mut dropped = Held::default();
-        unshared(&mut self.columns).retain(|column, cached| {
-            let kept = keep(column, cached);
-            if !kept {
-                dropped.add(cached.held);
-            }
-            kept
-        });
         self.held.sub(dropped);
     }
 
@@ -971,8 +965,9 @@ pub struct Streamer<S, H> {
     /// Chunks collected this frame (meshed, failed or thrown away): a plan
     /// made before asks for them again.
     collected: HashSet<ChunkKey>,
-    /// The LOD tree's update and cull made ahead for the next frame
-    /// (`None`: on the frame thread only, [`Streamer::set_lod_thread`]).
+    /// The LOD tree's update and cull and the selection made ahead for the
+    /// next frame (`None`: on the frame thread only,
+    /// [`Streamer::set_lod_thread`]).
     lod_thread: Option<LodThread<S, H>>,
     /// Frames whose tree came from the LOD thread, and frames that had to
     /// update and cull on the frame thread.
@@ -1284,7 +1279,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if here {
                 self.times.select_ms += self.times.plan_ms;
             }
-            self.free();
         }
         // Else the last frame's selection is drawn again (nothing it draws
         // was freed), never an empty one.
@@ -1392,6 +1386,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             options: self.options,
             prefetch: self.cache.prefetch,
             room_to_prefetch: self.cache.room_to_prefetch(self.held),
+            free_after_frames: self.cache.free_after_frames,
+            near_budget: self.cache.near_budget(self.held),
             camera,
             eye_margin,
         }
@@ -1436,7 +1432,18 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn apply(&mut self, plan: Plan<H>) {
         let start = Instant::now();
         let Plan {
-            mut draw, slots, arounds, used, new_columns, dropped_stale, mut jobs, forget_failed, millis, ..
+            mut draw,
+            slots,
+            arounds,
+            used,
+            new_columns,
+            dropped_stale,
+            mut jobs,
+            forget_failed,
+            aged,
+            least_recent,
+            millis,
+            ..
         } = plan;
         let frame = self.frame;
         let cache = &mut self.cache;
@@ -1515,6 +1522,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.spawn_workers();
         self.times.plan_ms = millis;
         self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.free(aged, least_recent);
     }
 
     /// Updates and culls the frame thread's own tree for `camera`.
@@ -1577,12 +1585,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
     }
 
-    /// Makes the LOD tree's update and cull ahead, on a thread of their
-    /// own, for the camera the last two frames' motion predicts, with a
-    /// margin around it (`true`, the default); a frame whose camera the
-    /// margin covers takes that tree and does no LOD work itself, others
-    /// update their own as with `false`. Returns whether the thread runs
-    /// (it may not start).
+    /// Makes the LOD tree's update and cull and the selection ahead, on a
+    /// thread of their own, between updates (while the game draws), for
+    /// the camera the last two frames' motion predicts, with a margin
+    /// around it (`true`, the default); a frame whose camera the margin
+    /// covers takes that tree and plan and only applies the plan, others
+    /// update their own and plan as with `false`. Returns whether the
+    /// thread runs (it may not start).
     pub fn set_lod_thread(&mut self, on: bool) -> bool {
         // What the old thread made is not for the new one.
         self.reclaim();
@@ -1594,8 +1603,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// Frames whose LOD tree came from the LOD thread, and frames whose
     /// tree it made could not serve (the camera jumped or turned past the
     /// margin, the update failed, or an edit came in between), updated on
-    /// the frame thread. A still camera asks for nothing and counts in
-    /// neither.
+    /// the frame thread. Every update asks the thread for the next (the
+    /// selection is planned there too), a still camera's as well; one
+    /// that follows no request (the first, or one after a failed update)
+    /// counts in neither.
     #[must_use]
     pub fn lod_thread_frames(&self) -> (u64, u64) {
         self.lod_frames
@@ -2099,21 +2110,21 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
     }
 
-    /// Frees columns out of use for a while (every 10 frames), and in a
-    /// frame that finds the cache past its chunk or byte budget the least
-    /// recently used ones until it is under 7/8 of it (never the face
-    /// roots, never what this frame draws or wants).
-    fn free(&mut self) {
-        let max_lod = self.tree.max_lod();
+    /// Frees the columns the plan found out of use for a while (`aged`,
+    /// every 10 frames), and in a frame that finds the cache past its chunk
+    /// or byte budget the least recently used ones until it is under 7/8
+    /// of it (in the plan's order, `least_recent`, where it made one), never
+    /// the face roots, never what this frame draws or wants.
+    fn free(&mut self, aged: Vec<(usize, ChunkColumn)>, least_recent: Option<Vec<(usize, ChunkColumn)>>) {
         let frame = self.frame;
         let cache = &mut self.cache;
-        let nothing_kept = HashSet::default();
-        let keep = self.selection.as_deref().map_or(&nothing_kept, |selection| &selection.keep);
-        if frame.is_multiple_of(10) {
-            let limit = cache.free_after_frames;
-            cache.retain_columns(|column, cached| {
-                column.lod == max_lod || frame.saturating_sub(cached.last_used) <= limit || keep.contains(column)
-            });
+        let limit = cache.free_after_frames;
+        for (slot, column) in aged {
+            // Unless used since the plan was made.
+            if cache.columns.in_slot(slot, column).is_some_and(|cached| frame.saturating_sub(cached.last_used) > limit)
+            {
+                cache.remove_column(column);
+            }
         }
         let (mut chunks, mut bytes) = (cache.chunks(), cache.held_bytes());
         self.held = (chunks, bytes);
@@ -2126,21 +2137,23 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // every frame to free a few (measured: the step's CPU time 2.8 ->
         // 4.5 ms median in a 1 km/s flight with a 256 MiB budget).
         let over = |chunks: usize, bytes: u64| chunks > cache.max_chunks / 8 * 7 || bytes > cache.max_bytes / 8 * 7;
-        // What the prefetch set keeps goes last, the least recently used
-        // first within each.
-        let mut old: Vec<(bool, u64, ChunkColumn)> = cache
-            .columns
-            .iter()
-            .filter(|(column, cached)| column.lod != max_lod && cached.last_used < frame)
-            .map(|(column, cached)| (keep.contains(column), cached.last_used, *column))
-            .collect();
-        old.sort_unstable();
+        let least_recent = least_recent.unwrap_or_else(|| {
+            let nothing_kept = HashSet::default();
+            let keep = self.selection.as_deref().map_or(&nothing_kept, |selection| &selection.keep);
+            let max_lod = self.tree.max_lod();
+            least_recently_used(&cache.columns, keep, max_lod, |_, cached| cached.last_used >= frame)
+                .into_iter()
+                .map(|(_, _, column, slot)| (slot, column))
+                .collect()
+        });
         let mut freed = Vec::new();
-        for (_, _, column) in old {
+        for (slot, column) in least_recent {
             if !over(chunks, bytes) {
                 break;
             }
-            if let Some(cached) = cache.columns.get(&column) {
+            if let Some(cached) = cache.columns.in_slot(slot, column)
+                && cached.last_used < frame
+            {
                 chunks -= cached.held.chunks;
                 bytes -= cached.held.bytes;
                 freed.push(column);
