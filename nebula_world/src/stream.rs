@@ -2112,9 +2112,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// Frees the columns the plan found out of use for a while (`aged`,
     /// every 10 frames), and in a frame that finds the cache past its chunk
-    /// or byte budget the least recently used ones until it is under 7/8
-    /// of it (in the plan's order, `least_recent`, where it made one), never
-    /// the face roots, never what this frame draws or wants.
+    /// or byte budget the least recently used ones until it is under it
+    /// (in the plan's order, `least_recent`, or one listed here where it
+    /// made none), never the face roots, never what this frame draws or
+    /// wants.
     fn free(&mut self, aged: Vec<(usize, ChunkColumn)>, least_recent: Option<Vec<(usize, ChunkColumn)>>) {
         let frame = self.frame;
         let cache = &mut self.cache;
@@ -2132,11 +2133,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if !over(chunks, bytes) {
             return;
         }
-        // Once over, down to 7/8 of the budget: a cache at its budget (any
-        // long session) would otherwise list and sort every column it holds
-        // every frame to free a few (measured: the step's CPU time 2.8 ->
-        // 4.5 ms median in a 1 km/s flight with a 256 MiB budget).
-        let over = |chunks: usize, bytes: u64| chunks > cache.max_chunks / 8 * 7 || bytes > cache.max_bytes / 8 * 7;
+        // Just under the budget: freeing is spread over the frames that
+        // fill the cache, each dropping what its own meshes took (dropping
+        // down to 7/8 of the budget at once took the step 20-30 ms in such
+        // a frame). Once near the budget, the plan lists the order to free
+        // in (listing and sorting every column here each frame cost the
+        // step's CPU time 2.8 -> 4.5 ms median in a 1 km/s flight with a
+        // 256 MiB budget); a frame that went past it unplanned lists here.
         let least_recent = least_recent.unwrap_or_else(|| {
             let nothing_kept = HashSet::default();
             let keep = self.selection.as_deref().map_or(&nothing_kept, |selection| &selection.keep);
