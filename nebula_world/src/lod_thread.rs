@@ -73,8 +73,8 @@ pub(crate) struct SelectRequest<H> {
 /// What the frame thread asks of the LOD thread, in order.
 enum Request<S, H> {
     /// Update and cull the tree for `camera` with `margin`, plan the
-    /// selection on it if asked, and send a copy and the plan.
-    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin, select: Option<Box<SelectRequest<H>>> },
+    /// selection on it, and send a copy and the plan.
+    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin, select: Box<SelectRequest<H>> },
     /// Re-read the bounds of edited columns.
     Refresh { voxels: Arc<S>, columns: Vec<ChunkColumn> },
     /// A new threshold, screen height or field of view.
@@ -85,17 +85,18 @@ enum Request<S, H> {
 
 /// What the LOD thread sends back for an update.
 pub(crate) struct Outcome<H> {
-    /// The tree updated and culled for the asked camera, and whether its
-    /// leaves changed; `None`: the update failed (a refused camera, a
-    /// failing voxel source), and the frame thread updates its own tree
-    /// and reports what it finds.
-    pub(crate) tree: Option<(Box<LodTree>, bool)>,
+    /// The tree updated and culled for the asked camera (whether its
+    /// leaves changed went into the selection's state); `None`: the update
+    /// failed (a refused camera, a failing voxel source), and the frame
+    /// thread updates its own tree and reports what it finds.
+    pub(crate) tree: Option<Box<LodTree>>,
     /// Tree-changing requests applied before the update.
     commands: u64,
-    /// The selection's state sent with the request, if any.
+    /// The selection's state sent with the request (`None` once the
+    /// streamer took it back).
     pub(crate) selection: Option<Box<Selection>>,
-    /// The selection planned on the tree, if asked (and the update and the
-    /// plan went through).
+    /// The selection planned on the tree (if the update and the plan went
+    /// through).
     pub(crate) plan: Option<Plan<H>>,
 }
 
@@ -108,9 +109,6 @@ pub(crate) struct LodThread<S, H> {
     commands: u64,
     /// An update asked for whose outcome has not come.
     in_flight: bool,
-    /// The camera and commands of the last update asked for: a still camera
-    /// over an unchanged tree asks for nothing more.
-    asked: Option<(Camera, u64)>,
 }
 
 impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
@@ -123,27 +121,16 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             lower_priority();
             serve(tree, &inbox, &outbox);
         })?;
-        Ok(Self { requests, outcomes: Mutex::new(outcomes), commands: 0, in_flight: false, asked: None })
+        Ok(Self { requests, outcomes: Mutex::new(outcomes), commands: 0, in_flight: false })
     }
 
     /// Asks for the tree of `camera`, culled with `margin`, and for the
-    /// selection planned on it if `select` (without one, nothing is asked
-    /// when the last request was the same camera with nothing changed
-    /// since).
-    pub(crate) fn ask(
-        &mut self,
-        voxels: &Arc<S>,
-        camera: Camera,
-        margin: CullMargin,
-        select: Option<SelectRequest<H>>,
-    ) {
-        if select.is_none() && self.asked == Some((camera, self.commands)) && !self.in_flight {
-            return;
-        }
-        let request = Request::Update { voxels: voxels.clone(), camera, margin, select: select.map(Box::new) };
+    /// selection planned on it (a still camera's too: the plan follows the
+    /// meshes that come).
+    pub(crate) fn ask(&mut self, voxels: &Arc<S>, camera: Camera, margin: CullMargin, select: SelectRequest<H>) {
+        let request = Request::Update { voxels: voxels.clone(), camera, margin, select: Box::new(select) };
         if self.requests.send((request, self.commands)).is_ok() {
             self.in_flight = true;
-            self.asked = Some((camera, self.commands));
         }
     }
 
@@ -201,8 +188,7 @@ impl<S, H> Drop for LodThread<S, H> {
 }
 
 /// The thread: takes every request waiting, applies the tree-changing ones
-/// in order, then updates for the newest camera asked for (and plans on
-/// it, if asked).
+/// in order, then updates for the newest camera asked for and plans on it.
 fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
     mut tree: LodTree,
     inbox: &Receiver<(Request<S, H>, u64)>,
@@ -259,33 +245,27 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
                 None
             }
         };
-        let (selection, plan) = match select {
-            Some(request) => {
-                let SelectRequest { mut selection, columns, stale, gained, failed, settings } = *request;
-                // A panic in the voxel source while planning leaves the
-                // plan to the frame thread, which reports it.
-                selection.tree_changed |= changed == Some(true);
-                let planned = changed.and_then(|_| {
-                    let input = SelectInput {
-                        voxels: &*voxels,
-                        tree: &tree,
-                        columns: &columns,
-                        stale: &stale,
-                        gained: &gained,
-                        failed: &failed,
-                        settings,
-                    };
-                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok()
-                });
-                // Let go of the columns before the frame thread can have
-                // the plan: it changes them as soon as it does.
-                drop(columns);
-                (Some(selection), planned)
-            }
-            None => (None, None),
-        };
+        let SelectRequest { mut selection, columns, stale, gained, failed, settings } = *select;
+        selection.tree_changed |= changed == Some(true);
+        // A panic in the voxel source while planning leaves the plan to the
+        // frame thread, which reports it.
+        let plan = changed.and_then(|_| {
+            let input = SelectInput {
+                voxels: &*voxels,
+                tree: &tree,
+                columns: &columns,
+                stale: &stale,
+                gained: &gained,
+                failed: &failed,
+                settings,
+            };
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok()
+        });
+        // Let go of the columns before the frame thread can have the plan:
+        // it changes them as soon as it does.
+        drop(columns);
         let outcome =
-            Outcome { tree: changed.map(|changed| (Box::new(tree.clone()), changed)), commands, selection, plan };
+            Outcome { tree: changed.map(|_| Box::new(tree.clone())), commands, selection: Some(selection), plan };
         if outbox.send(outcome).is_err() {
             return;
         }

@@ -1315,14 +1315,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         let (next, margin) = predict(previous, current, last_step);
         let settings = self.select_settings(self.frame + 1, next, margin.distance);
-        let select = self.selection.take().map(|selection| SelectRequest {
-            selection,
+        let select = SelectRequest {
+            selection: self.selection.take().unwrap_or_else(|| Box::new(Selection::new())),
             columns: self.cache.columns.clone(),
             stale: self.cache.stale.clone(),
             gained: self.cache.gained.clone(),
             failed: self.failed.clone(),
             settings,
-        });
+        };
         if let Some(thread) = self.lod_thread.as_mut() {
             thread.ask(&self.voxels, next, margin, select);
         }
@@ -1367,7 +1367,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// failed, or made before a change).
     fn take_made_ahead(&mut self, outcome: Outcome<H>, camera: &Camera) -> Option<Option<Plan<H>>> {
         let current = self.lod_thread.as_ref().is_some_and(|thread| thread.is_current(&outcome));
-        let (mut tree, _) = outcome.tree.filter(|_| current)?;
+        let mut tree = outcome.tree.filter(|_| current)?;
         // Its cull, made with a margin, narrowed to this camera's view.
         tree.narrow_cull(camera).ok()?;
         self.tree = *tree;
