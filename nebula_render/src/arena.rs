@@ -4,14 +4,20 @@
 //! Why: with one vertex and one index buffer per chunk (`create_buffer_init`)
 //! the Earth view 1 km up held 1.13 GB of RSS, of which about 700 MB was
 //! buffer overhead around 165 MB of meshes (the same run without uploads
-//! peaked at 417 MB). Pages of [`PAGE_VERTICES`] vertices and
-//! [`PAGE_INDICES`] indices are sub-allocated with `offset-allocator` (the
-//! two-level bitmap allocator Bevy also uses), filled through the
-//! renderer's staging belt (copies recorded and submitted before the
-//! frame's draws), and a chunk is drawn with its index range and a base
-//! vertex, binding buffers only when the page changes.
+//! peaked at 417 MB). A page is one buffer of [`PAGE_UNITS`] units of one
+//! vertex's size, bound as both the vertex and the index buffer and
+//! sub-allocated with `offset-allocator` (the two-level bitmap allocator
+//! Bevy also uses): a mesh takes one range, its vertices then its indices.
+//! It is filled through the renderer's staging belt (copies recorded and
+//! submitted before the frame's draws), and a chunk is drawn with its index
+//! range and a base vertex, binding buffers only when the page changes.
 //!
-//! A [`Slot`] frees its ranges when dropped, so dropping a chunk's mesh
+//! Why one range for both: pages with a vertex part and an index part of
+//! fixed sizes (1 Mi vertices, 4 Mi indices) filled their vertex part
+//! first (Earth meshes hold 2.4–3.7 indices per vertex), and a 1 km/s
+//! flight with a 512 MiB mesh budget held 10 pages (629 MB) for it.
+//!
+//! A [`Slot`] frees its range when dropped, so dropping a chunk's mesh
 //! (the cache freeing a column) returns its space.
 
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -19,22 +25,30 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use nebula_meshing::RenderVertex;
 use offset_allocator::{Allocation, Allocator};
 
-/// Vertices per page: 44 MB of [`RenderVertex`].
-pub const PAGE_VERTICES: u32 = 1 << 20;
-/// Indices per page: 16 MB.
-pub const PAGE_INDICES: u32 = 1 << 22;
+/// Units per page, each the size of one [`RenderVertex`] (44 bytes): 23 MB.
+pub const PAGE_UNITS: u32 = 1 << 19;
 
-const VERTEX_BYTES: u64 = size_of::<RenderVertex>() as u64;
+/// The allocation unit: one vertex, so a mesh's range starts at a whole
+/// base vertex; its indices follow the vertices, padded to a unit.
+const UNIT_BYTES: u64 = size_of::<RenderVertex>() as u64;
+/// Indices (u32) per unit: a unit's start is always a whole index.
+const INDICES_PER_UNIT: u32 = (UNIT_BYTES / 4) as u32;
 
-/// One vertex buffer and one index buffer and their free space.
+/// Allocations (and free ranges between them) a page's allocator tracks.
+/// `offset-allocator`'s default, 128 Ki, takes 4.7 MB of node tables per
+/// allocator (66 MB for the pages of a 512 MiB budget); a page of the
+/// Earth's meshes (7–19 KB each) holds 2,500–7,000 of them. A page whose
+/// table runs out refuses the mesh, which goes to the next page.
+const PAGE_MAX_ALLOCATIONS: u32 = 1 << 15;
+
+/// One buffer of meshes and its free space.
 pub struct Page {
-    /// The vertices of every mesh in the page.
-    pub vertices: wgpu::Buffer,
-    /// The indices (mesh-local: drawn with the slot's base vertex).
-    pub indices: wgpu::Buffer,
-    vertex_space: Allocator,
-    index_space: Allocator,
-    /// Capacity in bytes of both buffers.
+    /// Every mesh in the page: its vertices, then its indices (mesh-local:
+    /// drawn with the slot's base vertex). Bound as the vertex buffer and
+    /// as the (u32) index buffer.
+    pub buffer: wgpu::Buffer,
+    space: Allocator,
+    /// Capacity in bytes.
     bytes: u64,
 }
 
@@ -63,21 +77,21 @@ pub struct Slot {
     pages: Arc<Mutex<Pages>>,
     /// The page.
     pub page: usize,
-    vertices: Allocation,
-    indices: Allocation,
+    range: Allocation,
+    vertex_count: u32,
 }
 
 impl Slot {
     /// The mesh's first vertex in its page (the base vertex of its draws).
     #[must_use]
     pub fn first_vertex(&self) -> u32 {
-        self.vertices.offset
+        self.range.offset
     }
 
-    /// The mesh's first index in its page.
+    /// The mesh's first index in its page (its indices follow its vertices).
     #[must_use]
     pub fn first_index(&self) -> u32 {
-        self.indices.offset
+        (self.range.offset + self.vertex_count) * INDICES_PER_UNIT
     }
 }
 
@@ -88,8 +102,7 @@ impl Drop for Slot {
         if let Ok(mut pages) = self.pages.lock()
             && let Some(page) = pages.pages.get_mut(self.page)
         {
-            page.vertex_space.free(self.vertices);
-            page.index_space.free(self.indices);
+            page.space.free(self.range);
         }
     }
 }
@@ -115,33 +128,25 @@ impl MeshArena {
         if vertices.is_empty() || indices.is_empty() {
             return None;
         }
-        let (vertex_count, index_count) = (u32::try_from(vertices.len()).ok()?, u32::try_from(indices.len()).ok()?);
+        let vertex_count = u32::try_from(vertices.len()).ok()?;
+        let units = vertex_count.checked_add(u32::try_from(indices.len().div_ceil(INDICES_PER_UNIT as usize)).ok()?)?;
         let mut pages = self.pages.lock().ok()?;
-        let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| {
-            let v = page.vertex_space.allocate(vertex_count)?;
-            match page.index_space.allocate(index_count) {
-                Some(i) => Some((n, v, i)),
-                None => {
-                    page.vertex_space.free(v);
-                    None
-                }
-            }
-        });
-        let (page, v, i) = match found {
+        let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| Some((n, page.space.allocate(units)?)));
+        let (page, range) = match found {
             Some(found) => found,
             None => {
                 let n = pages.pages.len();
-                let mut page = new_page(device, vertex_count.max(PAGE_VERTICES), index_count.max(PAGE_INDICES), n);
-                let v = page.vertex_space.allocate(vertex_count)?;
-                let i = page.index_space.allocate(index_count)?;
+                let mut page = new_page(device, units.max(PAGE_UNITS), n);
+                let range = page.space.allocate(units)?;
                 pages.pages.push(page);
-                (n, v, i)
+                (n, range)
             }
         };
-        let target = &pages.pages[page];
-        write(&target.vertices, u64::from(v.offset) * VERTEX_BYTES, bytemuck::cast_slice(vertices));
-        write(&target.indices, u64::from(i.offset) * 4, bytemuck::cast_slice(indices));
-        Some(Slot { pages: self.pages.clone(), page, vertices: v, indices: i })
+        let target = &pages.pages[page].buffer;
+        let start = u64::from(range.offset) * UNIT_BYTES;
+        write(target, start, bytemuck::cast_slice(vertices));
+        write(target, start + u64::from(vertex_count) * UNIT_BYTES, bytemuck::cast_slice(indices));
+        Some(Slot { pages: self.pages.clone(), page, range, vertex_count })
     }
 
     /// The pages, locked (for drawing; no slot may be dropped meanwhile).
@@ -153,22 +158,16 @@ impl MeshArena {
     }
 }
 
-fn new_page(device: &wgpu::Device, vertices: u32, indices: u32, n: usize) -> Page {
-    let label = format!("chunk page {n}");
-    let buffer = |size: u64, usage: wgpu::BufferUsages| {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(&label),
-            size,
-            usage: usage | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    };
-    let (vertex_bytes, index_bytes) = (u64::from(vertices) * VERTEX_BYTES, u64::from(indices) * 4);
+fn new_page(device: &wgpu::Device, units: u32, n: usize) -> Page {
+    let bytes = u64::from(units) * UNIT_BYTES;
     Page {
-        vertices: buffer(vertex_bytes, wgpu::BufferUsages::VERTEX),
-        indices: buffer(index_bytes, wgpu::BufferUsages::INDEX),
-        vertex_space: Allocator::new(vertices),
-        index_space: Allocator::new(indices),
-        bytes: vertex_bytes + index_bytes,
+        buffer: device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("chunk page {n}")),
+            size: bytes,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+        space: Allocator::with_max_allocs(units, PAGE_MAX_ALLOCATIONS),
+        bytes,
     }
 }

@@ -1071,8 +1071,8 @@ impl PlanetRenderer {
         let mut calls = 0;
         for draws in &self.page_draws {
             let page = pages.page(draws.page);
-            pass.set_vertex_buffer(0, page.vertices.slice(..));
-            pass.set_index_buffer(page.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_vertex_buffer(0, page.buffer.slice(..));
+            pass.set_index_buffer(page.buffer.slice(..), wgpu::IndexFormat::Uint32);
             if self.indirect_draws {
                 pass.multi_draw_indexed_indirect(&self.indirect, u64::from(draws.first) * DRAW_ARGS_BYTES, draws.count);
                 calls += 1;

@@ -518,12 +518,13 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
 }
 
 /// The mesh arena packs meshes into a page until it is full, opens a new
-/// page then, hands freed space (a dropped slot) to the next mesh, and
-/// never lets two live meshes overlap.
+/// page then, hands freed space (a dropped slot) to the next mesh, never
+/// lets two live meshes overlap, and keeps a mesh's indices right after
+/// its vertices in one range, whatever their proportion.
 #[test]
 fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     use nebula_meshing::RenderVertex;
-    use nebula_render::arena::{MeshArena, PAGE_VERTICES};
+    use nebula_render::arena::{MeshArena, PAGE_UNITS};
     if !adapter_or_skip("arena") {
         return;
     }
@@ -536,8 +537,9 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
         normal: [0; 2],
         packed: 0,
     };
-    let quarter = vec![vertex; PAGE_VERTICES as usize / 4];
-    let write = |vertices, indices| {
+    // One unit (a vertex's size) holds the three indices: a quarter page.
+    let quarter = vec![vertex; PAGE_UNITS as usize / 4 - 1];
+    let write = |vertices, indices: &[u32]| {
         arena.upload(
             &gpu.device,
             &mut |target, offset, bytes| gpu.queue.write_buffer(target, offset, bytes),
@@ -551,18 +553,30 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     assert!(slots.iter().all(|s| s.page == 0), "four quarters fill the first page");
     let mut starts: Vec<u32> = slots.iter().map(|s| s.first_vertex()).collect();
     starts.sort_unstable();
-    assert!(starts.windows(2).all(|w| w[1] - w[0] >= PAGE_VERTICES / 4), "overlap: {starts:?}");
+    assert!(starts.windows(2).all(|w| w[1] - w[0] >= PAGE_UNITS / 4), "overlap: {starts:?}");
+    let index_bytes = |slot: &nebula_render::arena::Slot| u64::from(slot.first_index()) * 4;
+    let vertex_bytes = |slot: &nebula_render::arena::Slot| u64::from(slot.first_vertex()) * unit_bytes();
+    assert!(
+        slots.iter().all(|s| index_bytes(s) == vertex_bytes(s) + quarter.len() as u64 * unit_bytes()),
+        "a mesh's indices start right after its vertices"
+    );
     let fifth = upload();
     assert_eq!(fifth.page, 1, "a full page opens a new one");
     let freed = slots.remove(2).first_vertex();
     let again = upload();
     assert_eq!((again.page, again.first_vertex()), (0, freed), "freed space is reused");
-    assert_eq!(arena.lock().capacity_bytes(), 2 * arena_page_bytes());
+    assert_eq!(arena.lock().capacity_bytes(), 2 * u64::from(PAGE_UNITS) * unit_bytes());
+    // Mostly indices: a mesh of 4 vertices and a page's worth of indices
+    // less its vertices fits one page (pages with a fixed vertex part and
+    // index part filled one part first).
+    let indices = vec![0_u32; (PAGE_UNITS as usize - 4) * (unit_bytes() as usize / 4)];
+    drop((slots, fifth, again));
+    let index_heavy = write(&quarter[..4], &indices).expect("uploaded");
+    assert_eq!((index_heavy.page, arena.lock().capacity_bytes()), (0, 2 * u64::from(PAGE_UNITS) * unit_bytes()));
 }
 
-fn arena_page_bytes() -> u64 {
-    use nebula_render::arena::{PAGE_INDICES, PAGE_VERTICES};
-    u64::from(PAGE_VERTICES) * size_of::<nebula_meshing::RenderVertex>() as u64 + u64::from(PAGE_INDICES) * 4
+fn unit_bytes() -> u64 {
+    size_of::<nebula_meshing::RenderVertex>() as u64
 }
 
 /// Steps and draws `app` from `shot`, crack-checking every frame, until
