@@ -248,6 +248,8 @@ impl FlightReport {
                     "plan_ms": f.figures.frame.times.plan_ms,
                     "planned_ahead": f.figures.frame.times.planned_ahead,
                     "upload_bytes": f.figures.frame.times.upload_bytes,
+                    "gpu_mesh_bytes": f.figures.frame.renderer_bytes,
+                    "gpu_mesh_buffer_bytes": f.figures.gpu_buffer_bytes,
                     "draw_ms": f.figures.draw_ms,
                     "encode_ms": f.figures.render.encode_ms,
                     "draw_calls": f.figures.render.draw_calls,

@@ -1,14 +1,14 @@
 //! The GPU form of a chunk mesh, and the vertex shader's twin on the CPU.
 //!
 //! ```text
-//!   world position p, morph target t (f64, canonical)
-//!        ──►  high = f32(t), low = f32(p − high), target_low = f32(t − high)
+//!   world position p, morph target t (f64, canonical), the chunk's LOD L
+//!        ──►  high = f32(t), target_low = f16(t − high),
+//!             offset = f16((p − t) / 2^L)
 //!   eye e (f64, per frame)  ──►  high = f32(e), low = f32(e − high)
 //!
 //!   on the GPU:  base   = high − e.high                                (f32)
-//!                fine   = base + (low − e.low)
 //!                target = base + (target_low − e.low)
-//!                rel    = target + μ(|fine|) · (fine − target)        geomorph
+//!                rel    = target + μ(|target + offset·2^L|) · offset·2^L   geomorph
 //!                rel   += depth[side] · normalize(centre − rel)       skirt vertices
 //! ```
 //!
@@ -17,22 +17,35 @@
 //! sub-pixel gap rounding leaves shows as pinholes where chunks meet. A
 //! per-chunk f32 offset (origin − eye) plus a chunk-local f32 position
 //! rounds differently in each chunk. Here every input of the vertex shader
-//! is a function of the vertex's canonical f64 world position (and the
-//! frame) alone, never of the chunk that draws it, so the same arithmetic on
-//! the same numbers gives the same clip position. `p.high − e.high` is exact
-//! when the two are within a factor of 2 (Sterbenz), so precision near the
-//! camera is that of `low`: about 10⁻⁷ m on Earth.
+//! is a function of the vertex's canonical f64 world position, its morph
+//! target and its LOD (and the frame) alone, never of the chunk that draws
+//! it, so the same arithmetic on the same numbers gives the same clip
+//! position. `p.high − e.high` is exact when the two are within a factor of
+//! 2 (Sterbenz), so precision near the camera is that of the low parts.
 //!
 //! **Why the high part is the morph target's.** Geomorphing collapses
 //! distinct fine vertices onto one target (all of a parent cell's corners
 //! that round down to the same even lattice point). At μ = 0 those vertices
 //! must land on the bit-identical position too, or the triangles on either
 //! side of the collapsed ones can leave a float-rounding pinhole between
-//! them. A vertex that carried `morph target − position` as an f32 offset
-//! reached the target by a different rounding from each fine vertex (in 71 %
-//! of collapsing groups on Earth terrain, see the tests). Here
-//! the target is a function of the target alone (`high`, `target_low`), and
-//! `target + μ · (fine − target)` is exactly `target` at μ = 0.
+//! them. A vertex that carried `morph target − position` as an offset added
+//! to its own position reached the target by a different rounding from each
+//! fine vertex (in 71 % of collapsing groups on Earth terrain, see the
+//! tests). Here the target is a function of the target alone (`high`,
+//! `target_low`), the fine position is the target plus the vertex's offset,
+//! and `target + μ · offset` is exactly `target` at μ = 0 and exactly the
+//! fine position at μ = 1.
+//!
+//! **Why half floats.** The two low parts are small: `target_low` is at
+//! most half an f32 step of the planet's radius (0.25 m on Earth) and the
+//! offset a few voxels of the chunk's LOD, which the scale 2^L brings to a
+//! few units at every LOD (2^L is exact: the scale changes the exponent, not
+//! the rounding, so the same offset stored at two LODs reads back the same).
+//! An f16 keeps 11 significant bits: drawn positions are within 0.12 mm
+//! (the target) plus 2^-12 of the offset (0.4 mm for an LOD-0 vertex 1.7 m
+//! from its target) of the f64 truth, fixed in the world (no jitter as the
+//! eye moves), the same in every chunk that shares the vertex. Two f32
+//! triples took 24 bytes; two f16 triples take 12.
 //!
 //! **Why skirt depths at draw time.** A skirt vertex carries the position of
 //! the surface vertex it hangs from and its side; the renderer picks the
@@ -40,24 +53,26 @@
 //! mesh does not depend on its neighbours' LODs, and a streamer can swap any
 //! chunk without re-meshing the ones around it (see `MeshOptions`).
 //!
-//! Cost: 44 bytes per vertex against the 40 of a chunk-relative f32 vertex
-//! ([`MeshVertex`](crate::MeshVertex)): the low position takes 12 bytes,
-//! an octahedral-packed normal (2 × 16 bits) gives 8 of them back.
+//! Cost: 32 bytes per vertex against the 40 of a chunk-relative f32 vertex
+//! ([`MeshVertex`](crate::MeshVertex)) and the 44 of this vertex with f32
+//! low parts (before 2026-11-27): a 1 km/s flight's meshes held 27 % fewer
+//! vertex bytes.
 
 use bytemuck::{Pod, Zeroable};
+use half::f16;
 use nebula_math::{DVec3, FaceDirection, Vec3, morph_factor};
 
 use crate::ChunkMesh;
 
-/// One vertex as the GPU reads it: 44 bytes, `#[repr(C)]`, [`Pod`].
+/// One vertex as the GPU reads it: 32 bytes, `#[repr(C)]`, [`Pod`].
 ///
 /// | bytes | field | vertex format |
 /// |---|---|---|
 /// | 0–11 | `position_high`: f32 × 3, f32 of the morph target's world position | `Float32x3` |
-/// | 12–23 | `position_low`: f32 × 3, world position − high | `Float32x3` |
-/// | 24–35 | `target_low`: f32 × 3, morph target − high | `Float32x3` |
-/// | 36–39 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
-/// | 40–43 | `packed`: material (bits 0–7), sky light (8–15), flags (16–31) | `Uint32` |
+/// | 12–17 | `offset`: f16 × 3, (world position − morph target) / 2^LOD | `Float16x4` (with `target_low.x`) |
+/// | 18–23 | `target_low`: f16 × 3, morph target − high | `Float16x2` (`.y`, `.z`) |
+/// | 24–27 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
+/// | 28–31 | `packed`: material (bits 0–7), sky light (8–15), flags (16–23), LOD of the offset's scale (24–31) | `Uint32` |
 ///
 /// A skirt vertex holds the
 /// surface vertex it hangs from; `flags` says it is a skirt and on which
@@ -68,16 +83,20 @@ pub struct RenderVertex {
     /// f32 of the morph target's f64 world position (shared by every vertex
     /// that collapses onto it).
     pub position_high: [f32; 3],
-    /// f32 of (world position − `position_high`).
-    pub position_low: [f32; 3],
-    /// f32 of (morph target − `position_high`).
-    pub target_low: [f32; 3],
+    /// f16 of (world position − morph target) / 2^LOD, the LOD in `packed`.
+    pub offset: [f16; 3],
+    /// f16 of (morph target − `position_high`).
+    pub target_low: [f16; 3],
     /// Unit normal, octahedral encoding, snorm16 × 2.
     pub normal: [i16; 2],
     /// Material id in bits 0–7, [`MeshVertex::sky_light`](crate::MeshVertex::sky_light)
-    /// in bits 8–15, [`MeshVertex`](crate::MeshVertex) flags in the high 16 bits.
+    /// in bits 8–15, [`MeshVertex`](crate::MeshVertex) flags in bits 16–23,
+    /// the LOD that scales `offset` in bits 24–31.
     pub packed: u32,
 }
+
+/// Bits of [`RenderVertex::packed`] above which the offset's LOD lies.
+const OFFSET_LOD_SHIFT: u32 = 24;
 
 /// A vector split into a high f32 part and the f32 of the rest.
 #[must_use]
@@ -159,24 +178,30 @@ impl RenderVertex {
     /// itself is formed in f32 exactly as on the GPU.
     #[must_use]
     pub fn drawn_relative(&self, frame: &FrameDraw, chunk: &ChunkDraw) -> DVec3 {
-        let relative = |low: [f32; 3]| {
-            let axis = |k: usize| f64::from((self.position_high[k] - frame.eye_high[k]) + (low[k] - frame.eye_low[k]));
-            DVec3::new(axis(0), axis(1), axis(2))
-        };
-        let fine = relative(self.position_low);
-        let mut rel = fine;
+        let target = Vec3::from_array(std::array::from_fn(|k| {
+            (self.position_high[k] - frame.eye_high[k]) + (self.target_low[k].to_f32() - frame.eye_low[k])
+        }));
+        let offset = self.offset_metres();
+        let fine = target + offset;
+        let mut rel = fine.as_dvec3();
         if frame.morph {
-            let mu = vertex_morph_factor(frame, chunk, fine.length());
-            let target = relative(self.target_low);
-            rel = target + (fine - target) * mu;
+            let mu = vertex_morph_factor(frame, chunk, rel.length());
+            rel = target.as_dvec3() + offset.as_dvec3() * mu;
         }
-        let flags = (self.packed >> 16) as u16;
-        if flags & crate::MeshVertex::SKIRT != 0 {
-            let side = usize::from((flags >> crate::MeshVertex::SIDE_SHIFT) & 3);
+        if self.flags() & crate::MeshVertex::SKIRT != 0 {
+            let side = usize::from((self.flags() >> crate::MeshVertex::SIDE_SHIFT) & 3);
             let centre = -frame.eye();
             rel += (centre - rel).normalize_or_zero() * f64::from(chunk.skirt_depths[side]);
         }
         rel
+    }
+
+    /// World position − morph target, metres, as the GPU reads it: the f16
+    /// offset times 2^LOD (exact in f32).
+    #[must_use]
+    pub fn offset_metres(&self) -> Vec3 {
+        let scale = f32::from_bits((127 + (self.packed >> OFFSET_LOD_SHIFT)) << 23);
+        Vec3::from_array(self.offset.map(f16::to_f32)) * scale
     }
 
     /// The material id.
@@ -194,7 +219,7 @@ impl RenderVertex {
     /// The flags ([`MeshVertex`](crate::MeshVertex) constants).
     #[must_use]
     pub fn flags(&self) -> u16 {
-        (self.packed >> 16) as u16
+        ((self.packed >> 16) & 0xff) as u16
     }
 }
 
@@ -292,6 +317,8 @@ impl ChunkMesh {
     /// [`ChunkMesh::vertices`], so [`ChunkMesh::indices`] index them.
     #[must_use]
     pub fn render_vertices(&self) -> Vec<RenderVertex> {
+        let lod = self.key.lod;
+        let scale = f64::from(1_u32 << lod).recip();
         (0..self.vertices.len())
             .map(|i| {
                 let v = self.vertices[i];
@@ -299,14 +326,18 @@ impl ChunkMesh {
                 // renderer lowers it by the side's depth.
                 let from = self.skirt_top(i).map_or(i, |top| top as usize);
                 let (world, target) = (self.world[from], self.morph_world[from]);
-                let (position_high, target_low) = split_high_low(target);
-                let high = Vec3::from_array(position_high).as_dvec3();
+                let position_high = target.as_vec3();
+                let target_low = target - position_high.as_dvec3();
+                let offset = (world - target) * scale;
                 RenderVertex {
-                    position_high,
-                    position_low: (world - high).as_vec3().to_array(),
-                    target_low,
+                    position_high: position_high.to_array(),
+                    offset: offset.to_array().map(f16::from_f64),
+                    target_low: target_low.to_array().map(f16::from_f64),
                     normal: encode_normal(v.normal),
-                    packed: u32::from(v.material) | (u32::from(v.sky_light) << 8) | (u32::from(v.flags) << 16),
+                    packed: u32::from(v.material)
+                        | (u32::from(v.sky_light) << 8)
+                        | (u32::from(v.flags & 0xff) << 16)
+                        | (u32::from(lod) << OFFSET_LOD_SHIFT),
                 }
             })
             .collect()

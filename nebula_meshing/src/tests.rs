@@ -783,6 +783,54 @@ fn a_fully_morphed_chunk_is_its_parent() {
 }
 
 #[test]
+fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() {
+    // `RenderVertex` holds the morph target's low part and the vertex's
+    // offset from its target as f16, the offset scaled by 2^-LOD. Drawn
+    // with morphing off from eyes near each chunk, every Earth vertex lies
+    // within 0.2 mm + 2^-11 of its offset + 2^-21 of its distance (the f32
+    // arithmetic) of the f64 truth, at LODs from 0 to the coarsest. The
+    // control: the same offsets unscaled overflow f16 at the coarse LODs.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
+    let max_lod = earth.layout().max_lod();
+    let mut state = 0x51f1_5eed_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let (mut checked, mut worst, mut unscaled_overflows) = (0, 0.0_f64, 0);
+    for lod in [0, 1, 3, 6, 9, 12, 15, max_lod] {
+        for case in 0..3 {
+            let per_edge = earth.layout().chunks_per_edge(lod);
+            let column = ChunkColumn {
+                face: CubeFace::ALL[(usize::from(lod) + case) % 6],
+                lod,
+                x: (unit() * f64::from(per_edge)) as u32,
+                y: (unit() * f64::from(per_edge)) as u32,
+            };
+            for mesh in column_meshes(&earth, column) {
+                let Some(&centre) = mesh.world.first() else { continue };
+                let reach = earth.layout().voxel_edge(lod) * 64.0;
+                let eye = centre + DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * reach;
+                let frame = FrameDraw::new(eye, 1000.0, 1.0, false);
+                let draw = mesh.chunk_draw(0.0);
+                for (i, vertex) in mesh.render_vertices().iter().enumerate() {
+                    let offset = mesh.world[i] - mesh.morph_world[i];
+                    let truth = mesh.world[i] - eye;
+                    let error = (vertex.drawn_relative(&frame, &draw) - truth).length();
+                    let bound = 2e-4 + offset.length() / 2048.0 + truth.length() * 2f64.powi(-21);
+                    assert!(error <= bound, "LOD {lod}: drawn {error} m off, bound {bound} m");
+                    worst = worst.max(error / bound);
+                    checked += 1;
+                    if offset.to_array().iter().any(|&c| !half::f16::from_f64(c).is_finite()) {
+                        unscaled_overflows += 1;
+                    }
+                }
+            }
+        }
+    }
+    println!("{checked} vertices within the bound (worst {worst:.3} of it); unscaled, {unscaled_overflows} overflow");
+    assert!(checked > 10_000, "too few vertices: {checked}");
+    assert!(unscaled_overflows > 0, "the control cannot tell: no offset overflows unscaled");
+}
+
+#[test]
 fn vertices_that_collapse_onto_one_target_are_drawn_bit_identical_at_mu_zero() {
     // Geomorphing collapses distinct fine vertices onto one morph target; at
     // μ = 0 (parent error 0) the GPU must put them on the same bits, or the

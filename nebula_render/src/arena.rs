@@ -25,8 +25,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use nebula_meshing::RenderVertex;
 use offset_allocator::{Allocation, Allocator};
 
-/// Units per page, each the size of one [`RenderVertex`] (44 bytes): 23 MB.
-pub const PAGE_UNITS: u32 = 1 << 19;
+/// Units per page, each the size of one [`RenderVertex`] (32 bytes): 34 MB.
+pub const PAGE_UNITS: u32 = 1 << 20;
 
 /// The allocation unit: one vertex, so a mesh's range starts at a whole
 /// base vertex; its indices follow the vertices, padded to a unit.
@@ -37,7 +37,7 @@ const INDICES_PER_UNIT: u32 = (UNIT_BYTES / 4) as u32;
 /// Allocations (and free ranges between them) a page's allocator tracks.
 /// `offset-allocator`'s default, 128 Ki, takes 4.7 MB of node tables per
 /// allocator (66 MB for the pages of a 512 MiB budget); a page of the
-/// Earth's meshes (7–19 KB each) holds 2,500–7,000 of them. A page whose
+/// Earth's meshes (5–14 KB each) holds 2,400–6,700 of them. A page whose
 /// table runs out refuses the mesh, which goes to the next page.
 const PAGE_MAX_ALLOCATIONS: u32 = 1 << 15;
 

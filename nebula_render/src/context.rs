@@ -46,7 +46,7 @@ impl GpuContext {
             label: Some("nebula device"),
             required_features: adapter.features() & WANTED_FEATURES,
             required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
-            // The renderer's buffers are few and large (mesh pages of 23 MB,
+            // The renderer's buffers are few and large (mesh pages of 34 MB,
             // staging chunks of 8 MiB), so the allocator's small blocks waste
             // nothing; its default (`Performance`) blocks of 128–256 MB of
             // device memory and 64–128 MB of host memory held about 160 MB

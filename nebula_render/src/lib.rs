@@ -3,7 +3,7 @@
 //!
 //! - [`PlanetRenderer::upload`] is the mesh maker `Streamer::update`
 //!   asks for: chunk meshes go into a few large buffers
-//!   ([`arena::MeshArena`], pages of 23 MB sub-allocated with
+//!   ([`arena::MeshArena`], pages of 34 MB sub-allocated with
 //!   `offset-allocator`), never a buffer per chunk.
 //! - [`PlanetRenderer::prepare`] once a frame writes the frame's constants,
 //!   a table of per-chunk constants (read by the instance index) and the

@@ -574,7 +574,7 @@ impl PlanetRenderer {
         });
         // The layout of `nebula_meshing::RenderVertex`.
         let attributes =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Snorm16x2, 4 => Uint32];
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float16x4, 2 => Float16x2, 3 => Snorm16x2, 4 => Uint32];
         let make_pipeline = |polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),

@@ -41,11 +41,14 @@ struct Chunk {
 // nebula_meshing::RenderVertex.
 struct VertexIn {
     @location(0) position_high: vec3<f32>,
-    @location(1) position_low: vec3<f32>,
-    @location(2) target_low: vec3<f32>,
+    // xyz: (position − morph target) / 2^LOD; w: target_low.x (f16s).
+    @location(1) offset_target_x: vec4<f32>,
+    // target_low.yz.
+    @location(2) target_yz: vec2<f32>,
     @location(3) normal: vec2<f32>,
-    // bits 0–7: material, 8–15: sky light (0–255), high 16 bits: flags
-    // (1 = skirt, 2 = constrained, bits 2–3: the side a skirt hangs on).
+    // bits 0–7: material, 8–15: sky light (0–255), 16–23: flags (1 =
+    // skirt, 2 = constrained, bits 2–3: the side a skirt hangs on), 24–31:
+    // the LOD whose 2^LOD scales the offset.
     @location(4) packed: u32,
 };
 
@@ -94,21 +97,23 @@ fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
     var out: VertexOut;
     let chunk = chunks[instance];
     // Vertex − eye from the high and low parts: a function of the vertex's
-    // canonical world position and the frame only, never of the chunk, so a
-    // vertex shared by two chunks lands on the same clip position in both.
-    // The high part is the morph target's, shared by every vertex that
-    // collapses onto it, so at μ = 0 they all land on the bit-identical
-    // target (nebula_meshing::RenderVertex).
+    // canonical world position, morph target and LOD and of the frame only,
+    // never of the chunk, so a vertex shared by two chunks lands on the same
+    // clip position in both. The morph target is formed from its own parts,
+    // shared by every vertex that collapses onto it, and the vertex is the
+    // target plus its offset, so at μ = 0 they all land on the bit-identical
+    // target (nebula_meshing::RenderVertex). ldexp by the LOD is exact.
     let base = in.position_high - frame.eye_high.xyz;
-    let fine = base + (in.position_low - frame.eye_low.xyz);
-    var relative = fine;
+    let target_low = vec3<f32>(in.offset_target_x.w, in.target_yz);
+    let morph_target = base + (target_low - frame.eye_low.xyz);
+    let offset = ldexp(in.offset_target_x.xyz, vec3<i32>(i32(in.packed >> 24u)));
+    var relative = morph_target + offset;
     var mu = 1.0;
     if (frame.params.w > 0.5) {
-        mu = morph_factor(chunk.info.w, fine);
-        let morph_target = base + (in.target_low - frame.eye_low.xyz);
-        relative = morph_target + mu * (fine - morph_target);
+        mu = morph_factor(chunk.info.w, relative);
+        relative = morph_target + mu * offset;
     }
-    let flags = in.packed >> 16u;
+    let flags = (in.packed >> 16u) & 0xffu;
     if ((flags & 1u) != 0u) {
         // A skirt vertex hangs from the (morphed) surface vertex towards the
         // planet centre, as deep as its side needs this frame.

@@ -532,8 +532,8 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     let arena = MeshArena::default();
     let vertex = RenderVertex {
         position_high: [0.0; 3],
-        position_low: [0.0; 3],
-        target_low: [0.0; 3],
+        offset: Default::default(),
+        target_low: Default::default(),
         normal: [0; 2],
         packed: 0,
     };
