@@ -7,7 +7,8 @@
 //! peaked at 417 MB). A page is one buffer of [`PAGE_UNITS`] units of one
 //! vertex's size, bound as both the vertex and the index buffer and
 //! sub-allocated with `offset-allocator` (the two-level bitmap allocator
-//! Bevy also uses): a mesh takes one range, its vertices then its indices.
+//! Bevy also uses): a mesh takes one range, its vertices then its indices
+//! (u16 where it has at most 65,536 vertices, as nearly every chunk has).
 //! It is filled through the renderer's staging belt (copies recorded and
 //! submitted before the frame's draws), and a chunk is drawn with its index
 //! range and a base vertex, binding buffers only when the page changes.
@@ -31,8 +32,9 @@ pub const PAGE_UNITS: u32 = 1 << 20;
 /// The allocation unit: one vertex, so a mesh's range starts at a whole
 /// base vertex; its indices follow the vertices, padded to a unit.
 const UNIT_BYTES: u64 = size_of::<RenderVertex>() as u64;
-/// Indices (u32) per unit: a unit's start is always a whole index.
-const INDICES_PER_UNIT: u32 = (UNIT_BYTES / 4) as u32;
+/// Meshes of at most this many vertices keep u16 indices in the page
+/// (nearly every chunk: a quarter of a mesh's bytes were its u32 indices).
+const MAX_NARROW_VERTICES: usize = 1 << 16;
 
 /// Allocations (and free ranges between them) a page's allocator tracks.
 /// `offset-allocator`'s default, 128 Ki, takes 4.7 MB of node tables per
@@ -44,8 +46,9 @@ const PAGE_MAX_ALLOCATIONS: u32 = 1 << 15;
 /// One buffer of meshes and its free space.
 pub struct Page {
     /// Every mesh in the page: its vertices, then its indices (mesh-local:
-    /// drawn with the slot's base vertex). Bound as the vertex buffer and
-    /// as the (u32) index buffer.
+    /// drawn with the slot's base vertex; u16 or u32,
+    /// [`Slot::index_format`]). Bound as the vertex buffer and as the index
+    /// buffer.
     pub buffer: wgpu::Buffer,
     space: Allocator,
     /// Capacity in bytes.
@@ -78,7 +81,10 @@ pub struct Slot {
     /// The page.
     pub page: usize,
     range: Allocation,
+    units: u32,
     vertex_count: u32,
+    /// u16 indices (else u32).
+    narrow: bool,
 }
 
 impl Slot {
@@ -88,10 +94,25 @@ impl Slot {
         self.range.offset
     }
 
-    /// The mesh's first index in its page (its indices follow its vertices).
+    /// The mesh's first index in its page (its indices follow its
+    /// vertices), counted in indices of its [`Self::index_format`].
     #[must_use]
     pub fn first_index(&self) -> u32 {
-        (self.range.offset + self.vertex_count) * INDICES_PER_UNIT
+        let index_bytes = if self.narrow { 2 } else { 4 };
+        (self.range.offset + self.vertex_count) * (UNIT_BYTES / index_bytes) as u32
+    }
+
+    /// The format of its indices: u16 for a mesh of at most 65,536
+    /// vertices, else u32.
+    #[must_use]
+    pub fn index_format(&self) -> wgpu::IndexFormat {
+        if self.narrow { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 }
+    }
+
+    /// Bytes of the page it takes.
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        u64::from(self.units) * UNIT_BYTES
     }
 }
 
@@ -129,7 +150,9 @@ impl MeshArena {
             return None;
         }
         let vertex_count = u32::try_from(vertices.len()).ok()?;
-        let units = vertex_count.checked_add(u32::try_from(indices.len().div_ceil(INDICES_PER_UNIT as usize)).ok()?)?;
+        let narrow = vertices.len() <= MAX_NARROW_VERTICES;
+        let index_bytes = indices.len() * if narrow { 2 } else { 4 };
+        let units = vertex_count.checked_add(u32::try_from(index_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?;
         let mut pages = self.pages.lock().ok()?;
         let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| Some((n, page.space.allocate(units)?)));
         let (page, range) = match found {
@@ -145,8 +168,19 @@ impl MeshArena {
         let target = &pages.pages[page].buffer;
         let start = u64::from(range.offset) * UNIT_BYTES;
         write(target, start, bytemuck::cast_slice(vertices));
-        write(target, start + u64::from(vertex_count) * UNIT_BYTES, bytemuck::cast_slice(indices));
-        Some(Slot { pages: self.pages.clone(), page, range, vertex_count })
+        let index_start = start + u64::from(vertex_count) * UNIT_BYTES;
+        if narrow {
+            // Every index is below 65,536. Copies are of whole 4-byte words:
+            // an odd count gets a padding index (the unit has room for it).
+            let mut narrowed: Vec<u16> = indices.iter().map(|&i| i as u16).collect();
+            if narrowed.len() % 2 == 1 {
+                narrowed.push(0);
+            }
+            write(target, index_start, bytemuck::cast_slice(&narrowed));
+        } else {
+            write(target, index_start, bytemuck::cast_slice(indices));
+        }
+        Some(Slot { pages: self.pages.clone(), page, range, units, vertex_count, narrow })
     }
 
     /// The pages, locked (for drawing; no slot may be dropped meanwhile).

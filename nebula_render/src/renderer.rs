@@ -184,7 +184,8 @@ pub struct GpuMesh {
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
-    /// Bytes of its vertices and indices in the renderer's buffers.
+    /// Bytes it takes in the renderer's buffers (its vertices and indices,
+    /// rounded up to whole vertices).
     pub bytes: u64,
 }
 
@@ -324,10 +325,12 @@ pub struct FrameStats {
     pub gpu_ms: Option<f64>,
 }
 
-/// The draws of one mesh buffer page: a range of the indirect buffer.
+/// The draws of the meshes of one mesh buffer page with one index format:
+/// a range of the indirect buffer.
 #[derive(Clone, Copy, Debug)]
 struct PageDraws {
     page: usize,
+    index_format: wgpu::IndexFormat,
     first: u32,
     count: u32,
 }
@@ -361,6 +364,8 @@ pub struct PlanetRenderer {
     /// kept for their allocations (made anew each frame, their growth and
     /// page faults were a good part of the frame's encoding).
     chunk_uniforms: Vec<ChunkUniform>,
+    /// The frame's draws by page and index format (`2 · page + 1` for
+    /// u16 indices).
     by_page: Vec<Vec<DrawIndexedIndirectArgs>>,
     /// Whether draws go through the indirect buffer (the device can start
     /// an indirect draw at an instance).
@@ -438,12 +443,12 @@ impl MeshUploader {
             uploads.closed.push(full.finish());
         }
         GpuMesh {
+            bytes: slot.as_ref().map_or(0, Slot::bytes),
             slot,
             surface_side_ranges: mesh.surface_side_ranges.clone(),
             skirt_ranges: mesh.skirt_ranges.clone(),
             lod: key.lod,
             id: id % 4096,
-            bytes: mesh.bytes(),
         }
     }
 
@@ -936,11 +941,13 @@ impl PlanetRenderer {
                 ],
                 skirt_depths: draw.skirt_depths,
             });
-            if by_page.len() <= slot.page {
-                by_page.resize_with(slot.page + 1, Vec::new);
+            // Draws are grouped by page and index format.
+            let group = slot.page * 2 + usize::from(slot.index_format() == wgpu::IndexFormat::Uint16);
+            if by_page.len() <= group {
+                by_page.resize_with(group + 1, Vec::new);
             }
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
-            let page = &mut by_page[slot.page];
+            let page = &mut by_page[group];
             for range in drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, &draw) {
                 page.push(DrawIndexedIndirectArgs {
                     index_count: range.len() as u32,
@@ -961,9 +968,10 @@ impl PlanetRenderer {
         }
         self.draw_args.clear();
         self.page_draws.clear();
-        for (page, draws) in by_page.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
+        for (group, draws) in by_page.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
             let first = self.draw_args.len() as u32;
-            self.page_draws.push(PageDraws { page, first, count: draws.len() as u32 });
+            let index_format = if group % 2 == 1 { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 };
+            self.page_draws.push(PageDraws { page: group / 2, index_format, first, count: draws.len() as u32 });
             self.draw_args.extend_from_slice(draws);
         }
         if self.indirect_draws && !self.draw_args.is_empty() {
@@ -1072,7 +1080,7 @@ impl PlanetRenderer {
         for draws in &self.page_draws {
             let page = pages.page(draws.page);
             pass.set_vertex_buffer(0, page.buffer.slice(..));
-            pass.set_index_buffer(page.buffer.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_index_buffer(page.buffer.slice(..), draws.index_format);
             if self.indirect_draws {
                 pass.multi_draw_indexed_indirect(&self.indirect, u64::from(draws.first) * DRAW_ARGS_BYTES, draws.count);
                 calls += 1;

@@ -520,7 +520,8 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
 /// The mesh arena packs meshes into a page until it is full, opens a new
 /// page then, hands freed space (a dropped slot) to the next mesh, never
 /// lets two live meshes overlap, and keeps a mesh's indices right after
-/// its vertices in one range, whatever their proportion.
+/// its vertices in one range, whatever their proportion, as u16 where the
+/// mesh has at most 65,536 vertices.
 #[test]
 fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     use nebula_meshing::RenderVertex;
@@ -566,13 +567,17 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     let again = upload();
     assert_eq!((again.page, again.first_vertex()), (0, freed), "freed space is reused");
     assert_eq!(arena.lock().capacity_bytes(), 2 * u64::from(PAGE_UNITS) * unit_bytes());
-    // Mostly indices: a mesh of 4 vertices and a page's worth of indices
-    // less its vertices fits one page (pages with a fixed vertex part and
-    // index part filled one part first).
-    let indices = vec![0_u32; (PAGE_UNITS as usize - 4) * (unit_bytes() as usize / 4)];
+    assert!(slots.iter().all(|s| s.index_format() == wgpu::IndexFormat::Uint32), "more than 65,536 vertices");
+    // Mostly indices: a mesh of 4 vertices (u16 indices) and a page's worth
+    // of indices less its vertices fits one page (pages with a fixed vertex
+    // part and index part filled one part first).
+    let indices = vec![0_u32; (PAGE_UNITS as usize - 4) * (unit_bytes() as usize / 2)];
     drop((slots, fifth, again));
     let index_heavy = write(&quarter[..4], &indices).expect("uploaded");
+    assert_eq!(index_heavy.index_format(), wgpu::IndexFormat::Uint16);
+    assert_eq!(u64::from(index_heavy.first_index()) * 2, vertex_bytes(&index_heavy) + 4 * unit_bytes());
     assert_eq!((index_heavy.page, arena.lock().capacity_bytes()), (0, 2 * u64::from(PAGE_UNITS) * unit_bytes()));
+    assert_eq!(index_heavy.bytes(), u64::from(PAGE_UNITS) * unit_bytes());
 }
 
 fn unit_bytes() -> u64 {
