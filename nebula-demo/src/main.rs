@@ -846,7 +846,7 @@ impl ApplicationHandler for Windowed {
                 .with_title("Nebula")
                 .with_inner_size(winit::dpi::PhysicalSize::new(self.shot.size.0, self.shot.size.1));
             let window = Arc::new(event_loop.create_window(attributes)?);
-            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+            let instance = wgpu::Instance::new(nebula_render::context::instance_descriptor());
             let surface = instance.create_surface(window.clone())?;
             let gpu = GpuContext::new(&instance, Some(&surface))?;
             let size = window.inner_size();

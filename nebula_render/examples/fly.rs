@@ -61,7 +61,7 @@ impl App {
 
     fn open(&self, event_loop: &ActiveEventLoop) -> Result<Flying, Box<dyn std::error::Error>> {
         let window = Arc::new(event_loop.create_window(Window::default_attributes().with_title("Nebula: fly"))?);
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance = wgpu::Instance::new(nebula_render::context::instance_descriptor());
         let surface = instance.create_surface(window.clone())?;
         let gpu = GpuContext::new(&instance, Some(&surface))?;
         let size = window.inner_size();

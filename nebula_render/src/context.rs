@@ -5,6 +5,24 @@
 
 use crate::renderer::{COLOR_FORMAT, RenderError, WANTED_FEATURES};
 
+/// The instance options from the environment (wgpu's `WGPU_*` variables),
+/// but for wgpu's validation of indirect draws, off unless
+/// `WGPU_VALIDATION_INDIRECT_CALL` asks for it or on Windows. That
+/// validation runs a compute pass over the frame's indirect draws before
+/// the terrain pass and keeps a 33 MB buffer for it; the renderer writes
+/// every indirect draw itself, from a live mesh's range in its page and an
+/// instance in the frame's chunk table. On Windows the instance may open a
+/// D3D12 adapter, where without it `instance_index` leaves out the draw's
+/// first instance (the renderer's chunk table is read by it).
+#[must_use]
+pub fn instance_descriptor() -> wgpu::InstanceDescriptor {
+    let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    if cfg!(not(windows)) && std::env::var_os("WGPU_VALIDATION_INDIRECT_CALL").is_none() {
+        descriptor.flags.remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
+    }
+    descriptor
+}
+
 /// An adapter with its device and queue.
 pub struct GpuContext {
     /// The adapter.
@@ -64,7 +82,7 @@ impl GpuContext {
     /// # Errors
     /// [`RenderError::NoAdapter`] when there is no adapter at all.
     pub fn headless() -> Result<Self, RenderError> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance = wgpu::Instance::new(instance_descriptor());
         Self::new(&instance, None)
     }
 

@@ -430,8 +430,8 @@ pub struct MeshCache<H> {
     /// the columns used longest ago (not drawn or wanted this frame) are
     /// freed first. What the frame draws is always kept. Memory is bounded
     /// by [`MeshCache::max_bytes`]; this bounds the bookkeeping (an Earth
-    /// view 1 km up at 640×400 holds about 30,000 chunks, 330 MB, with
-    /// what is out of view).
+    /// view 1 km up at 640×400 holds about 30,000 chunks, about 220 MB,
+    /// with what is out of view).
     pub max_chunks: usize,
     /// The same for bytes of mesh data held (renderer, plus the CPU copies
     /// when kept). Chunks differ a lot in size, so a chunk count alone does
@@ -458,10 +458,18 @@ pub struct MeshCache<H> {
 }
 
 impl<H: MeshHandle> MeshCache<H> {
-    /// The default [`MeshCache::max_bytes`]: 512 MiB.
+    /// The default [`MeshCache::max_bytes`]: 384 MiB. It holds a little
+    /// more than 512 MiB did before meshes shrank by a third on the GPU
+    /// (2026-11-27: 32-byte vertices, u16 indices), which a 640×400 view
+    /// held still and then turned needs to keep its detail: an Earth view
+    /// 1 km up holds about 30,000 chunks with what is out of view, 330 MB
+    /// in the bytes of before, about 220 MB now (the still view's own
+    /// meshes went 57.0 → 38.1 MB).
+    /// A game drawing more pixels wants more (the meshes a view draws grow
+    /// with its pixels at a given τ).
     #[must_use]
     pub const fn default_max_bytes() -> u64 {
-        512 << 20
+        384 << 20
     }
 
     /// The cached columns, to change ([`unshared`]).
