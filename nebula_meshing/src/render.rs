@@ -55,8 +55,8 @@
 //!
 //! Cost: 32 bytes per vertex against the 40 of a chunk-relative f32 vertex
 //! ([`MeshVertex`](crate::MeshVertex)) and the 44 of this vertex with f32
-//! low parts (before 2026-11-27): a 1 km/s flight's meshes held 27 % fewer
-//! vertex bytes.
+//! low parts (before 2026-11-27); with u16 indices in the renderer, the
+//! still Earth view 1 km up at 640×400 holds 38.1 MB of meshes for 57.0.
 
 use bytemuck::{Pod, Zeroable};
 use half::f16;
