@@ -83,8 +83,7 @@ pub struct Slot {
     range: Allocation,
     units: u32,
     vertex_count: u32,
-    /// u16 indices (else u32).
-    narrow: bool,
+    index_format: wgpu::IndexFormat,
 }
 
 impl Slot {
@@ -98,15 +97,14 @@ impl Slot {
     /// vertices), counted in indices of its [`Self::index_format`].
     #[must_use]
     pub fn first_index(&self) -> u32 {
-        let index_bytes = if self.narrow { 2 } else { 4 };
-        (self.range.offset + self.vertex_count) * (UNIT_BYTES / index_bytes) as u32
+        (self.range.offset + self.vertex_count) * UNIT_BYTES as u32 / self.index_format.byte_size()
     }
 
     /// The format of its indices: u16 for a mesh of at most 65,536
     /// vertices, else u32.
     #[must_use]
     pub fn index_format(&self) -> wgpu::IndexFormat {
-        if self.narrow { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 }
+        self.index_format
     }
 
     /// Bytes of the page it takes.
@@ -150,8 +148,9 @@ impl MeshArena {
             return None;
         }
         let vertex_count = u32::try_from(vertices.len()).ok()?;
-        let narrow = vertices.len() <= MAX_NARROW_VERTICES;
-        let index_bytes = indices.len() * if narrow { 2 } else { 4 };
+        let index_format =
+            if vertices.len() <= MAX_NARROW_VERTICES { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 };
+        let index_bytes = indices.len() * index_format.byte_size() as usize;
         let units = vertex_count.checked_add(u32::try_from(index_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?;
         let mut pages = self.pages.lock().ok()?;
         let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| Some((n, page.space.allocate(units)?)));
@@ -169,7 +168,7 @@ impl MeshArena {
         let start = u64::from(range.offset) * UNIT_BYTES;
         write(target, start, bytemuck::cast_slice(vertices));
         let index_start = start + u64::from(vertex_count) * UNIT_BYTES;
-        if narrow {
+        if index_format == wgpu::IndexFormat::Uint16 {
             // Every index is below 65,536. Copies are of whole 4-byte words:
             // an odd count gets a padding index (the unit has room for it).
             let mut narrowed: Vec<u16> = indices.iter().map(|&i| i as u16).collect();
@@ -180,7 +179,7 @@ impl MeshArena {
         } else {
             write(target, index_start, bytemuck::cast_slice(indices));
         }
-        Some(Slot { pages: self.pages.clone(), page, range, units, vertex_count, narrow })
+        Some(Slot { pages: self.pages.clone(), page, range, units, vertex_count, index_format })
     }
 
     /// The pages, locked (for drawing; no slot may be dropped meanwhile).

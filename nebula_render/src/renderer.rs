@@ -325,6 +325,10 @@ pub struct FrameStats {
     pub gpu_ms: Option<f64>,
 }
 
+/// The index formats of the meshes in a page ([`Slot::index_format`]), in
+/// the order a page's draws are grouped.
+const INDEX_FORMATS: [wgpu::IndexFormat; 2] = [wgpu::IndexFormat::Uint32, wgpu::IndexFormat::Uint16];
+
 /// The draws of the meshes of one mesh buffer page with one index format:
 /// a range of the indirect buffer.
 #[derive(Clone, Copy, Debug)]
@@ -364,9 +368,9 @@ pub struct PlanetRenderer {
     /// kept for their allocations (made anew each frame, their growth and
     /// page faults were a good part of the frame's encoding).
     chunk_uniforms: Vec<ChunkUniform>,
-    /// The frame's draws by page and index format (`2 · page + 1` for
-    /// u16 indices).
-    by_page: Vec<Vec<DrawIndexedIndirectArgs>>,
+    /// The frame's draws by page, then by index format (as in
+    /// [`INDEX_FORMATS`]).
+    by_page: Vec<[Vec<DrawIndexedIndirectArgs>; 2]>,
     /// Whether draws go through the indirect buffer (the device can start
     /// an indirect draw at an instance).
     indirect_draws: bool,
@@ -924,10 +928,10 @@ impl PlanetRenderer {
         // One entry per chunk in the chunk table, read by the instance
         // index; one indirect draw per drawn range (the surface but the
         // sides looking away, and only the skirts lowered this frame),
-        // grouped by the page holding the mesh.
+        // grouped by the page holding the mesh and its index format.
         let (chunk_uniforms, by_page) = (&mut self.chunk_uniforms, &mut self.by_page);
         chunk_uniforms.clear();
-        by_page.iter_mut().for_each(Vec::clear);
+        by_page.iter_mut().flatten().for_each(Vec::clear);
         for (mesh, draw) in meshes {
             // An empty mesh draws nothing and needs no constants.
             let Some(slot) = &mesh.slot else { continue };
@@ -941,13 +945,12 @@ impl PlanetRenderer {
                 ],
                 skirt_depths: draw.skirt_depths,
             });
-            // Draws are grouped by page and index format.
-            let group = slot.page * 2 + usize::from(slot.index_format() == wgpu::IndexFormat::Uint16);
-            if by_page.len() <= group {
-                by_page.resize_with(group + 1, Vec::new);
+            if by_page.len() <= slot.page {
+                by_page.resize_with(slot.page + 1, Default::default);
             }
+            let format = usize::from(slot.index_format() == INDEX_FORMATS[1]);
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
-            let page = &mut by_page[group];
+            let page = &mut by_page[slot.page][format];
             for range in drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, &draw) {
                 page.push(DrawIndexedIndirectArgs {
                     index_count: range.len() as u32,
@@ -968,11 +971,12 @@ impl PlanetRenderer {
         }
         self.draw_args.clear();
         self.page_draws.clear();
-        for (group, draws) in by_page.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
-            let first = self.draw_args.len() as u32;
-            let index_format = if group % 2 == 1 { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 };
-            self.page_draws.push(PageDraws { page: group / 2, index_format, first, count: draws.len() as u32 });
-            self.draw_args.extend_from_slice(draws);
+        for (page, by_format) in by_page.iter().enumerate() {
+            for (&index_format, draws) in INDEX_FORMATS.iter().zip(by_format).filter(|(_, d)| !d.is_empty()) {
+                let first = self.draw_args.len() as u32;
+                self.page_draws.push(PageDraws { page, index_format, first, count: draws.len() as u32 });
+                self.draw_args.extend_from_slice(draws);
+            }
         }
         if self.indirect_draws && !self.draw_args.is_empty() {
             if self.draw_args.len() as u64 > self.indirect_capacity {
