@@ -247,6 +247,7 @@ impl FlightReport {
                     "select_ms": f.figures.frame.times.select_ms,
                     "plan_ms": f.figures.frame.times.plan_ms,
                     "planned_ahead": f.figures.frame.times.planned_ahead,
+                    "lod_wait_ms": f.figures.frame.times.lod_wait_ms,
                     "upload_bytes": f.figures.frame.times.upload_bytes,
                     "gpu_mesh_bytes": f.figures.frame.renderer_bytes,
                     "gpu_mesh_buffer_bytes": f.figures.gpu_buffer_bytes,

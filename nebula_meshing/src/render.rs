@@ -9,7 +9,7 @@
 //!   on the GPU:  base   = high − e.high                                (f32)
 //!                target = base + (target_low − e.low)
 //!                rel    = target + μ(|target + offset·2^L|) · offset·2^L   geomorph
-//!                rel   += depth[side] · normalize(centre − rel)       skirt vertices
+//!                rel   += depth[side] · normalize(centre − rel)       lowered skirt corners
 //! ```
 //!
 //! **Why high + low.** Design rule 6: a vertex shared by two chunks must
@@ -47,16 +47,21 @@
 //! eye moves), the same in every chunk that shares the vertex. Two f32
 //! triples took 24 bytes; two f16 triples take 12.
 //!
-//! **Why skirt depths at draw time.** A skirt vertex carries the position of
-//! the surface vertex it hangs from and its side; the renderer picks the
-//! depth per chunk side from the LODs it actually draws next to it. So a
-//! mesh does not depend on its neighbours' LODs, and a streamer can swap any
-//! chunk without re-meshing the ones around it (see `MeshOptions`).
+//! **Why skirts at draw time, from edges.** A skirt is the quad under each
+//! outline edge of a side, its top the two surface vertices, its bottom the
+//! same two lowered towards the centre as deep as the renderer asks for
+//! that side, from the LODs it actually draws next to it. So a mesh does
+//! not depend on its neighbours' LODs, and a streamer can swap any chunk
+//! without re-meshing the ones around it (see `MeshOptions`). A render mesh
+//! keeps only the edges ([`RenderMesh::skirt_edges`]); the top corners are
+//! placed by the same code as the surface vertices, so they land on the
+//! same bits.
 //!
 //! Cost: 32 bytes per vertex against the 40 of a chunk-relative f32 vertex
 //! ([`MeshVertex`](crate::MeshVertex)) and the 44 of this vertex with f32
-//! low parts (before 2026-11-27); with u16 indices in the renderer, the
-//! still Earth view 1 km up at 640×400 holds 38.1 MB of meshes for 57.0.
+//! low parts (before 2026-11-27); with u16 indices and skirts as edges in
+//! the renderer, the still Earth view 1 km up at 640×400 holds 27.1 MB of
+//! meshes (38.1 MB with skirts as triangles, 57.0 MB before that).
 
 use bytemuck::{Pod, Zeroable};
 use half::f16;
@@ -74,9 +79,10 @@ use crate::ChunkMesh;
 /// | 24–27 | `normal`: octahedral, 2 × i16 | `Snorm16x2` |
 /// | 28–31 | `packed`: material (bits 0–7), sky light (8–15), flags (16–23), LOD of the offset's scale (24–31) | `Uint32` |
 ///
-/// A skirt vertex holds the
-/// surface vertex it hangs from; `flags` says it is a skirt and on which
-/// side ([`MeshVertex::skirt_side`](crate::MeshVertex::skirt_side)).
+/// A render mesh holds surface vertices only. ([`ChunkMesh::render_vertices`]
+/// also converts a chunk mesh's skirt vertices: such a vertex holds the
+/// surface vertex it hangs from, and `flags` says it is a skirt and on
+/// which side, [`MeshVertex::skirt_side`](crate::MeshVertex::skirt_side).)
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct RenderVertex {
@@ -190,8 +196,7 @@ impl RenderVertex {
         }
         if self.flags() & crate::MeshVertex::SKIRT != 0 {
             let side = usize::from((self.flags() >> crate::MeshVertex::SIDE_SHIFT) & 3);
-            let centre = -frame.eye();
-            rel += (centre - rel).normalize_or_zero() * f64::from(chunk.skirt_depths[side]);
+            rel = lowered(rel, frame, chunk.skirt_depths[side]);
         }
         rel
     }
@@ -232,59 +237,113 @@ pub fn vertex_morph_factor(frame: &FrameDraw, chunk: &ChunkDraw, distance: f64) 
     morph_factor(rho / frame.threshold_px)
 }
 
-/// A chunk mesh in the form a renderer uploads: [`RenderVertex`]es, a
-/// triangle list (the surface first, then each side's skirt) and where
-/// each part starts, so a renderer draws the surface and only the skirts a
-/// frame lowers ([`drawn_ranges`]).
+/// Where a skirt vertex hangs: `relative` (a drawn surface vertex, camera
+/// relative) moved `depth` metres towards the planet centre, as the skirt
+/// vertex shader moves it (the centre from the frame's eye).
+#[must_use]
+pub fn lowered(relative: DVec3, frame: &FrameDraw, depth: f32) -> DVec3 {
+    let centre = -frame.eye();
+    relative + (centre - relative).normalize_or_zero() * f64::from(depth)
+}
+
+/// The six corners of the two triangles of the skirt quad under an
+/// outline edge (a, b): which end (0 = a, 1 = b) and whether it is the
+/// lowered copy. The surface runs a → b; the skirt continues it, so it
+/// runs b → a, wound as the surface so that it faces away from the chunk
+/// (the skirt vertex shader's `SKIRT_ENDS` / `SKIRT_LOWERED` twin; the
+/// same triangles [`generate_skirt`](crate::generate_skirt) makes).
+pub const SKIRT_CORNERS: [(usize, bool); 6] = [(0, true), (1, false), (0, false), (1, true), (1, false), (0, true)];
+
+/// A chunk mesh in the form a renderer uploads: [`RenderVertex`]es of the
+/// surface, its triangle list by the side its faces look to, and each
+/// side's skirt as the outline edges it hangs from.
+///
+/// A skirt is not stored as triangles: a renderer draws the quad under
+/// each outline edge from the edge's two surface vertices, lowered at draw
+/// time ([`SKIRT_CORNERS`], [`lowered`]). Every chunk carries a skirt on
+/// each of its four sides (its neighbours' LODs may change without a new
+/// mesh) and a frame lowers a few of them: stored as triangles with their
+/// lowered vertices they took 44 bytes per outline edge and about a
+/// quarter of a chunk's bytes; as a pair of u16 vertex indices, 4 bytes.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RenderMesh {
-    /// Vertices as uploaded.
+    /// The surface's vertices.
     pub vertices: Vec<RenderVertex>,
-    /// Triangle list: the surface, then each side's skirt.
+    /// The surface's triangle list.
     pub indices: Vec<u32>,
     /// The surface triangles looking towards each side (index
-    /// `FaceDirection as usize`): consecutive ranges that together are the
-    /// start of `indices`, before the skirts.
+    /// `FaceDirection as usize`): consecutive ranges that together are
+    /// `indices`.
     pub surface_side_ranges: [std::ops::Range<usize>; 6],
-    /// Index range of each side's skirt (as in `FaceDirection::HORIZONTAL`).
+    /// Outline edges `[a, b]` skirts hang from (vertex indices; the surface
+    /// runs a → b along the chunk's side).
+    pub skirt_edges: Vec<[u32; 2]>,
+    /// The range of `skirt_edges` of each side's skirt (index as in
+    /// `FaceDirection::HORIZONTAL`).
     pub skirt_ranges: [std::ops::Range<usize>; 4],
 }
 
 impl RenderMesh {
-    /// Bytes of its vertices and indices.
+    /// Bytes of its vertices, indices and skirt edges.
     #[must_use]
     pub fn bytes(&self) -> u64 {
-        (size_of_val(self.vertices.as_slice()) + size_of_val(self.indices.as_slice())) as u64
+        (size_of_val(self.vertices.as_slice())
+            + size_of_val(self.indices.as_slice())
+            + size_of_val(self.skirt_edges.as_slice())) as u64
     }
 
-    /// The index ranges drawn with `draw`: the surface and the skirts of
-    /// the sides lowered.
+    /// The index ranges of the surface drawn with `draw` (the sides it does
+    /// not hide).
     pub fn drawn_ranges(&self, draw: &ChunkDraw) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-        drawn_ranges(&self.surface_side_ranges, &self.skirt_ranges, draw)
+        drawn_ranges(&self.surface_side_ranges, draw)
     }
 
     /// Triangles of the surface looking towards each side (index
-    /// `FaceDirection as usize`), and of each side's skirt.
+    /// `FaceDirection as usize`), and of each side's skirt (two per
+    /// outline edge).
     #[must_use]
     pub fn triangle_counts(&self) -> ([usize; 6], [usize; 4]) {
-        (self.surface_side_ranges.clone().map(|r| r.len() / 3), self.skirt_ranges.clone().map(|r| r.len() / 3))
+        (self.surface_side_ranges.clone().map(|r| r.len() / 3), self.skirt_ranges.clone().map(|r| 2 * r.len()))
+    }
+
+    /// The triangles drawn with `frame` and `chunk`, camera relative, as
+    /// the vertex shaders place them: the surface but the hidden sides,
+    /// then the skirts of the sides lowered (the CPU twin of a renderer's
+    /// draws, for the crack oracle and pop measurements).
+    #[must_use]
+    pub fn drawn_triangles(&self, frame: &FrameDraw, chunk: &ChunkDraw) -> Vec<[DVec3; 3]> {
+        let placed: Vec<DVec3> = self.vertices.iter().map(|v| v.drawn_relative(frame, chunk)).collect();
+        let placed = &placed;
+        let surface = self
+            .drawn_ranges(chunk)
+            .flat_map(|range| self.indices[range].chunks_exact(3))
+            .map(|t| [placed[t[0] as usize], placed[t[1] as usize], placed[t[2] as usize]]);
+        let skirts = lowered_skirts(&self.skirt_ranges, chunk).flat_map(|(side, range)| {
+            let depth = chunk.skirt_depths[side];
+            self.skirt_edges[range].iter().flat_map(move |edge| {
+                let corner = |(end, low): (usize, bool)| {
+                    let top = placed[edge[end] as usize];
+                    if low { lowered(top, frame, depth) } else { top }
+                };
+                let corners = SKIRT_CORNERS.map(corner);
+                [[corners[0], corners[1], corners[2]], [corners[3], corners[4], corners[5]]]
+            })
+        });
+        surface.chain(skirts).collect()
     }
 }
 
-/// The surface ranges of the sides `draw` does not hide and the skirt
-/// ranges of the sides it lowers, in index order, adjacent ranges merged.
-/// No allocation: a renderer calls it for every drawn chunk every frame.
+/// The surface ranges of the sides `draw` does not hide, in index order,
+/// adjacent ranges merged. No allocation: a renderer calls it for every
+/// drawn chunk every frame.
 pub fn drawn_ranges(
     surface: &[std::ops::Range<usize>; 6],
-    skirts: &[std::ops::Range<usize>; 4],
     draw: &ChunkDraw,
 ) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-    let mut parts: [std::ops::Range<usize>; 10] = Default::default();
+    let mut parts: [std::ops::Range<usize>; 6] = Default::default();
     let mut count = 0;
-    let shown_surface =
-        surface.iter().enumerate().filter(|(side, _)| draw.hidden_sides & (1 << side) == 0).map(|(_, r)| r);
-    let lowered_skirts = skirts.iter().zip(draw.skirt_depths).filter(|(_, depth)| *depth > 0.0).map(|(r, _)| r);
-    for range in shown_surface.chain(lowered_skirts).filter(|r| !r.is_empty()) {
+    let shown = surface.iter().enumerate().filter(|(side, _)| draw.hidden_sides & (1 << side) == 0);
+    for (_, range) in shown.filter(|(_, r)| !r.is_empty()) {
         parts[count] = range.clone();
         count += 1;
     }
@@ -301,16 +360,41 @@ pub fn drawn_ranges(
     parts.into_iter().take(merged)
 }
 
+/// The skirts `draw` lowers: each side (index as in
+/// `FaceDirection::HORIZONTAL`) with a depth above 0 and outline edges,
+/// and its range of a [`RenderMesh`]'s `skirt_edges`.
+pub fn lowered_skirts(
+    skirts: &[std::ops::Range<usize>; 4],
+    draw: &ChunkDraw,
+) -> impl Iterator<Item = (usize, std::ops::Range<usize>)> + use<> {
+    let depths = draw.skirt_depths;
+    skirts.clone().into_iter().enumerate().filter(move |(side, r)| depths[*side] > 0.0 && !r.is_empty())
+}
+
 impl ChunkMesh {
-    /// The mesh in the form a renderer uploads.
+    /// The mesh in the form a renderer uploads: the surface's vertices and
+    /// triangles, the skirts as the outline edges they hang from.
     #[must_use]
     pub fn render_mesh(&self) -> RenderMesh {
-        RenderMesh {
-            vertices: self.render_vertices(),
-            indices: self.indices().to_vec(),
-            surface_side_ranges: self.surface_side_ranges(),
-            skirt_ranges: self.skirt_index_ranges(),
+        // Skirt vertices (the lowered copies) are left out, the others
+        // renumbered in order.
+        let mut renumbered = vec![u32::MAX; self.vertices.len()];
+        let mut vertices = Vec::with_capacity(self.vertices.len());
+        for (i, vertex) in self.render_vertices().into_iter().enumerate() {
+            if self.skirt_top(i).is_none() {
+                renumbered[i] = vertices.len() as u32;
+                vertices.push(vertex);
+            }
         }
+        let indices = self.indices[..self.surface_index_count].iter().map(|&i| renumbered[i as usize]).collect();
+        let mut skirt_edges = Vec::new();
+        let skirt_ranges = self.skirt_ranges.clone().map(|range| {
+            let first = skirt_edges.len();
+            let edges = crate::seams::skirt_outline(&self.indices[range]);
+            skirt_edges.extend(edges.map(|[a, b]| [renumbered[a as usize], renumbered[b as usize]]));
+            first..skirt_edges.len()
+        });
+        RenderMesh { vertices, indices, surface_side_ranges: self.surface_side_ranges(), skirt_edges, skirt_ranges }
     }
 
     /// The vertices in GPU form (see [`RenderVertex`]), in the order of

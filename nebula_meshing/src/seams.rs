@@ -8,6 +8,7 @@ use nebula_voxel::{CHUNK_SIZE, VoxelSource};
 
 use crate::MeshError;
 use crate::mesh::{ChunkMesh, MeshVertex, VertexSource, along_axis};
+use crate::render::SKIRT_CORNERS;
 
 /// Constrains the edge vertices of a fine chunk to a neighbour `lod_diff`
 /// LODs coarser on `edge`.
@@ -126,15 +127,24 @@ pub fn generate_skirt(
     };
     let first = mesh.indices.len();
     for (a, b) in mesh.outline_edges(edge) {
-        let (a_low, b_low) = (bottom_of(mesh, a), bottom_of(mesh, b));
+        let lows = [bottom_of(mesh, a), bottom_of(mesh, b)];
         // The surface runs a → b; the skirt continues it, so it runs b → a.
         // Each triangle starts at a skirt vertex (same winding, rotated) so
         // that flat-interpolated flags mark the whole triangle as skirt.
-        mesh.indices.extend([a_low, b, a, b_low, b, a_low]);
+        mesh.indices.extend(SKIRT_CORNERS.map(|(end, low)| if low { lows[end] } else { [a, b][end] }));
         mesh.skirt_triangles += 2;
     }
     mesh.skirt_ranges[crate::side_index(edge)] = first..mesh.indices.len();
     Ok(())
+}
+
+/// The outline edges `[a, b]` that the skirt triangles `indices` (one
+/// side's, as [`generate_skirt`] lays them out: six corners per edge,
+/// [`SKIRT_CORNERS`]) hang from.
+pub(crate) fn skirt_outline(indices: &[u32]) -> impl Iterator<Item = [u32; 2]> + '_ {
+    let top = |end: usize| SKIRT_CORNERS.iter().position(|&corner| corner == (end, false)).unwrap_or(end);
+    let (a, b) = (top(0), top(1));
+    indices.chunks_exact(SKIRT_CORNERS.len()).map(move |quad| [quad[a], quad[b]])
 }
 
 /// How deep a skirt must hang on an edge between a chunk at `fine_lod` and

@@ -386,7 +386,7 @@ fn zips_are_drawn_whatever_sides_are_culled() {
         // walls; the faces looking up or down are always drawn).
         for hidden_sides in 0..16u8 {
             let draw = ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides };
-            let ranges: Vec<_> = drawn_ranges(&mesh.surface_side_ranges(), &mesh.skirt_index_ranges(), &draw).collect();
+            let ranges: Vec<_> = drawn_ranges(&mesh.surface_side_ranges(), &draw).collect();
             for &start in &zip_starts {
                 assert!(
                     ranges.iter().any(|r| r.contains(&start)),

@@ -898,16 +898,14 @@ fn vertices_that_collapse_onto_one_target_are_drawn_bit_identical_at_mu_zero() {
 proptest! {
     #[test]
     fn drawn_ranges_are_the_shown_parts_in_order_and_merged(
-        lengths in proptest::collection::vec(0usize..5, 10),
+        lengths in proptest::collection::vec(0usize..5, 6),
         hidden_sides in 0u8..64,
-        lowered in proptest::collection::vec(proptest::bool::ANY, 4),
     ) {
-        // Ten consecutive parts (six surface sides, four skirts) in a
-        // shuffled order of index ranges; what is drawn is exactly the
-        // indices of the parts shown, as ascending ranges that neither
-        // touch nor overlap.
-        let order = [3, 7, 0, 9, 5, 1, 8, 2, 6, 4];
-        let mut starts = [0usize; 10];
+        // Six consecutive parts (the surface's sides) in a shuffled order
+        // of index ranges; what is drawn is exactly the indices of the
+        // parts shown, as ascending ranges that neither touch nor overlap.
+        let order = [3, 0, 5, 1, 2, 4];
+        let mut starts = [0usize; 6];
         let mut at = 0;
         for &part in &order {
             starts[part] = at;
@@ -915,21 +913,79 @@ proptest! {
         }
         let part = |n: usize| starts[n]..starts[n] + lengths[n];
         let surface: [std::ops::Range<usize>; 6] = std::array::from_fn(part);
-        let skirts: [std::ops::Range<usize>; 4] = std::array::from_fn(|n| part(6 + n));
-        let skirt_depths = std::array::from_fn(|n| if lowered[n] { 1.0 } else { 0.0 });
-        let draw = ChunkDraw { parent_error: 0.0, skirt_depths, hidden_sides };
-        let ranges: Vec<_> = drawn_ranges(&surface, &skirts, &draw).collect();
+        let draw = ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides };
+        let ranges: Vec<_> = drawn_ranges(&surface, &draw).collect();
         prop_assert!(ranges.windows(2).all(|w| w[0].end < w[1].start), "{ranges:?}");
         prop_assert!(ranges.iter().all(|r| !r.is_empty()));
         let drawn: HashSet<usize> = ranges.into_iter().flatten().collect();
-        let shown: HashSet<usize> = (0..6)
-            .filter(|side| hidden_sides & (1 << side) == 0)
-            .map(part)
-            .chain((0..4).filter(|&n| lowered[n]).map(|n| part(6 + n)))
-            .flatten()
-            .collect();
+        let shown: HashSet<usize> =
+            (0..6).filter(|side| hidden_sides & (1 << side) == 0).flat_map(part).collect();
         prop_assert_eq!(drawn, shown);
     }
+}
+
+#[test]
+fn skirts_drawn_from_outline_edges_are_the_skirt_triangles_of_the_mesh() {
+    // A render mesh keeps a skirt as the outline edges it hangs from, and
+    // a renderer builds the quad under each edge at draw time. Drawn with
+    // random depths per side and random sides lowered, its triangles must
+    // be exactly (bit for bit, in order) the chunk mesh's own: the surface
+    // of the sides shown, then the skirt triangles generate_skirt made,
+    // placed from its lowered vertices. Earth chunks at LODs 0–12 with
+    // draw-time skirts. The control: edges read with their ends swapped
+    // draw other triangles.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let mut state = 0x5c1a_7e55_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let (mut meshes, mut skirt_triangles, mut control_differs) = (0, 0, 0);
+    for case in 0..100u32 {
+        let lod = [0, 1, 2, 4, 8, 12][case as usize % 6];
+        let per_edge = earth.layout().chunks_per_edge(lod);
+        let column = ChunkColumn {
+            face: CubeFace::ALL[case as usize % 6],
+            lod,
+            x: (unit() * f64::from(per_edge)) as u32,
+            y: (unit() * f64::from(per_edge)) as u32,
+        };
+        let mut buffer = ChunkMeshBuffer::new();
+        for layer in earth.surface_chunk_layers(column).unwrap() {
+            let key = column.chunk(layer);
+            let mesh =
+                mesh_chunk(&earth, key, &ChunkLodContext::uniform(lod), MeshOptions::STREAMING, &mut buffer).unwrap();
+            let Some(&centre) = mesh.world.first() else { continue };
+            let eye =
+                centre + DVec3::new(unit() - 0.5, unit() + 0.5, unit() - 0.5) * earth.layout().voxel_edge(lod) * 40.0;
+            let frame = FrameDraw::new(eye, 1000.0, 1.0, true);
+            let draw = ChunkDraw {
+                parent_error: earth.layout().voxel_edge(lod) * 2.0,
+                skirt_depths: std::array::from_fn(|_| if unit() < 0.4 { 0.0 } else { (unit() * 20.0) as f32 }),
+                hidden_sides: (unit() * 64.0) as u8,
+            };
+            let render = mesh.render_mesh();
+            let vertices = mesh.render_vertices();
+            let placed = |i: u32| vertices[i as usize].drawn_relative(&frame, &draw);
+            let surface = render.drawn_ranges(&draw).flat_map(|range| mesh.indices()[range].chunks_exact(3));
+            let skirts = lowered_skirts(&mesh.skirt_index_ranges(), &draw)
+                .flat_map(|(_, range)| mesh.indices()[range].chunks_exact(3));
+            let expected: Vec<[DVec3; 3]> = surface.chain(skirts).map(|t| [0, 1, 2].map(|k| placed(t[k]))).collect();
+            let drawn = render.drawn_triangles(&frame, &draw);
+            assert_eq!(drawn.len(), expected.len(), "{key:?}");
+            for (d, e) in drawn.iter().zip(&expected) {
+                assert_eq!(d.map(|p| p.to_array().map(f64::to_bits)), e.map(|p| p.to_array().map(f64::to_bits)));
+            }
+            skirt_triangles += render.triangle_counts().1.iter().sum::<usize>();
+            assert_eq!(render.triangle_counts().1.iter().sum::<usize>(), mesh.skirt_triangle_count());
+            let mut swapped = render.clone();
+            swapped.skirt_edges.iter_mut().for_each(|edge| edge.reverse());
+            control_differs += usize::from(swapped.drawn_triangles(&frame, &draw) != drawn);
+            meshes += 1;
+        }
+    }
+    println!(
+        "{meshes} meshes, {skirt_triangles} skirt triangles drawn from edges as made; swapped ends differ in {control_differs}"
+    );
+    assert!(meshes > 80 && skirt_triangles > 10_000, "too little to tell: {meshes} meshes, {skirt_triangles}");
+    assert!(control_differs > meshes / 4, "the control cannot tell: {control_differs} of {meshes}");
 }
 
 /// Ground up to padded layer 20 with a tunnel along x (padded layers

@@ -7,11 +7,15 @@
 //! peaked at 417 MB). A page is one buffer of [`PAGE_UNITS`] units of one
 //! vertex's size, bound as both the vertex and the index buffer and
 //! sub-allocated with `offset-allocator` (the two-level bitmap allocator
-//! Bevy also uses): a mesh takes one range, its vertices then its indices
-//! (u16 where it has at most 65,536 vertices, as nearly every chunk has).
-//! It is filled through the renderer's staging belt (copies recorded and
-//! submitted before the frame's draws), and a chunk is drawn with its index
-//! range and a base vertex, binding buffers only when the page changes.
+//! Bevy also uses): a mesh takes one range, its vertices, its indices (u16
+//! where it has at most 65,536 vertices, as nearly every chunk has), then
+//! its skirts' outline edges (a u32 of two u16 vertex indices each, or two
+//! u32). It is filled through the renderer's staging belt (copies recorded
+//! and submitted before the frame's draws). A surface is drawn with its
+//! index range and a base vertex, the page bound as vertex and index
+//! buffer; a skirt without indices, its shader reading its edges and the
+//! vertices they name from the page bound as a storage buffer; a page is
+//! bound only when it changes.
 //!
 //! Why one range for both: pages with a vertex part and an index part of
 //! fixed sizes (1 Mi vertices, 4 Mi indices) filled their vertex part
@@ -47,8 +51,9 @@ const PAGE_MAX_ALLOCATIONS: u32 = 1 << 15;
 pub struct Page {
     /// Every mesh in the page: its vertices, then its indices (mesh-local:
     /// drawn with the slot's base vertex; u16 or u32,
-    /// [`Slot::index_format`]). Bound as the vertex buffer and as the index
-    /// buffer.
+    /// [`Slot::index_format`]), then its skirt edges
+    /// ([`Slot::first_edge_word`]). Bound as the vertex and index buffer of
+    /// the surfaces and as the storage buffer the skirt shader reads.
     pub buffer: wgpu::Buffer,
     space: Allocator,
     /// Capacity in bytes.
@@ -68,6 +73,18 @@ impl Pages {
         &self.pages[n]
     }
 
+    /// How many pages there are.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.pages.len()
+    }
+
+    /// Whether there is no page yet.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.pages.is_empty()
+    }
+
     /// Bytes of GPU buffers the pages hold (used or not).
     #[must_use]
     pub fn capacity_bytes(&self) -> u64 {
@@ -84,6 +101,7 @@ pub struct Slot {
     units: u32,
     vertex_count: u32,
     index_format: wgpu::IndexFormat,
+    edge_word: u32,
 }
 
 impl Slot {
@@ -98,6 +116,14 @@ impl Slot {
     #[must_use]
     pub fn first_index(&self) -> u32 {
         (self.range.offset + self.vertex_count) * UNIT_BYTES as u32 / self.index_format.byte_size()
+    }
+
+    /// The first 4-byte word of its skirt edges in the page: each edge one
+    /// word (vertex a in the low 16 bits, b in the high) where the mesh's
+    /// indices are u16, else two words (a, b).
+    #[must_use]
+    pub fn first_edge_word(&self) -> u32 {
+        self.edge_word
     }
 
     /// The format of its indices: u16 for a mesh of at most 65,536
@@ -143,6 +169,7 @@ impl MeshArena {
         write: &mut dyn FnMut(&wgpu::Buffer, u64, &[u8]),
         vertices: &[RenderVertex],
         indices: &[u32],
+        skirt_edges: &[[u32; 2]],
     ) -> Option<Slot> {
         if vertices.is_empty() || indices.is_empty() {
             return None;
@@ -150,8 +177,16 @@ impl MeshArena {
         let vertex_count = u32::try_from(vertices.len()).ok()?;
         let index_format =
             if vertices.len() <= MAX_NARROW_VERTICES { wgpu::IndexFormat::Uint16 } else { wgpu::IndexFormat::Uint32 };
-        let index_bytes = indices.len() * index_format.byte_size() as usize;
-        let units = vertex_count.checked_add(u32::try_from(index_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?;
+        // Indices padded to whole 4-byte words (copies are of whole words),
+        // then the edges as words.
+        let index_words = (indices.len() * index_format.byte_size() as usize).div_ceil(4);
+        let edge_words: Vec<u32> = if index_format == wgpu::IndexFormat::Uint16 {
+            skirt_edges.iter().map(|&[a, b]| a | (b << 16)).collect()
+        } else {
+            skirt_edges.iter().flatten().copied().collect()
+        };
+        let tail_bytes = 4 * (index_words + edge_words.len());
+        let units = vertex_count.checked_add(u32::try_from(tail_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?;
         let mut pages = self.pages.lock().ok()?;
         let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| Some((n, page.space.allocate(units)?)));
         let (page, range) = match found {
@@ -169,8 +204,7 @@ impl MeshArena {
         write(target, start, bytemuck::cast_slice(vertices));
         let index_start = start + u64::from(vertex_count) * UNIT_BYTES;
         if index_format == wgpu::IndexFormat::Uint16 {
-            // Every index is below 65,536. Copies are of whole 4-byte words:
-            // an odd count gets a padding index (the unit has room for it).
+            // Every index is below 65,536. An odd count gets a padding index.
             let mut narrowed: Vec<u16> = indices.iter().map(|&i| i as u16).collect();
             if narrowed.len() % 2 == 1 {
                 narrowed.push(0);
@@ -179,7 +213,10 @@ impl MeshArena {
         } else {
             write(target, index_start, bytemuck::cast_slice(indices));
         }
-        Some(Slot { pages: self.pages.clone(), page, range, units, vertex_count, index_format })
+        let edge_start = index_start + 4 * index_words as u64;
+        write(target, edge_start, bytemuck::cast_slice(&edge_words));
+        let edge_word = u32::try_from(edge_start / 4).ok()?;
+        Some(Slot { pages: self.pages.clone(), page, range, units, vertex_count, index_format, edge_word })
     }
 
     /// The pages, locked (for drawing; no slot may be dropped meanwhile).
@@ -197,7 +234,10 @@ fn new_page(device: &wgpu::Device, units: u32, n: usize) -> Page {
         buffer: device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(&format!("chunk page {n}")),
             size: bytes,
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::VERTEX
+                | wgpu::BufferUsages::INDEX
+                | wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         }),
         space: Allocator::with_max_allocs(units, PAGE_MAX_ALLOCATIONS),

@@ -7,9 +7,9 @@
 //!    lowest surface under the chunks drawn — the ground must cover it; or
 //! 2. **geometry rule**: the ray hits a triangle that frame drew, at least
 //!    [`ROBUST_MARGIN_PX`] inside its edges. The triangles are the drawn
-//!    meshes exactly as the vertex shader places them (morph and draw-time
-//!    skirt depths included; [`RenderVertex::drawn_relative`](nebula_meshing::RenderVertex::drawn_relative) is the
-//!    shader's CPU twin), intersected in f64. A front face the rasteriser
+//!    meshes exactly as the vertex shaders place them (morph and draw-time
+//!    skirts included; [`RenderMesh::drawn_triangles`](nebula_meshing::RenderMesh::drawn_triangles) is the
+//!    shaders' CPU twin), intersected in f64. A front face the rasteriser
 //!    should have covered is a pinhole; a back face means the ray got
 //!    inside the ground without crossing its surface.
 //!
@@ -145,13 +145,10 @@ fn geometry_hits(
         .filter_map(|(n, (mesh, chunk))| {
             let (mut min, mut max, mut top) = (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0_f64);
             let eye = frame.eye();
-            for range in mesh.drawn_ranges(chunk) {
-                for &i in &mesh.indices[range] {
-                    let p = mesh.vertices[i as usize].drawn_relative(frame, chunk);
-                    min = min.min(p);
-                    max = max.max(p);
-                    top = top.max((p + eye).length());
-                }
+            for p in mesh.drawn_triangles(frame, chunk).into_iter().flatten() {
+                min = min.min(p);
+                max = max.max(p);
+                top = top.max((p + eye).length());
             }
             if !(min.is_finite() && max.is_finite()) {
                 return None;
@@ -178,11 +175,9 @@ fn geometry_hits(
         built[slot]
             .get_or_init(|| {
                 let (mesh, chunk) = &drawn[boxes[slot].0];
-                let placed: Vec<DVec3> = mesh.vertices.iter().map(|v| v.drawn_relative(frame, chunk)).collect();
                 let exact: Vec<[DVec3; 3]> = mesh
-                    .drawn_ranges(chunk)
-                    .flat_map(|range| mesh.indices[range].chunks_exact(3))
-                    .map(|t| [placed[t[0] as usize], placed[t[1] as usize], placed[t[2] as usize]])
+                    .drawn_triangles(frame, chunk)
+                    .into_iter()
                     .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).length_squared() > 0.0)
                     .collect();
                 if exact.is_empty() {

@@ -8,14 +8,16 @@
 //! - [`PlanetRenderer::prepare`] once a frame writes the frame's constants,
 //!   a table of per-chunk constants (read by the instance index) and the
 //!   frame's draws as indirect commands; [`PlanetRenderer::draw_terrain`]
-//!   issues one `multi_draw_indexed_indirect` per page: a frame of 20,000
+//!   issues per page one `multi_draw_indexed_indirect` for the surfaces
+//!   and one `multi_draw_indirect` for the skirts: a frame of 20,000
 //!   chunks is a handful of draw calls. Where the device lacks
 //!   `INDIRECT_FIRST_INSTANCE` every chunk range is its own draw (counted
 //!   in [`FrameStats::draw_calls`]).
-//! - The vertex shader places every vertex camera-relative from f64 split
-//!   into two f32s, geomorphs it towards its parent LOD by screen-space
-//!   error and lowers skirts; the fragment shader lights materials, or
-//!   shows a [`DebugView`].
+//! - The vertex shaders place every vertex camera-relative from f64 split
+//!   into two f32s and geomorph it towards its parent LOD by screen-space
+//!   error; the skirt shader builds each skirt quad from an outline edge of
+//!   the surface, lowered as deep as the frame needs. The fragment shader
+//!   lights materials, or shows a [`DebugView`].
 //! - [`PlanetRenderer::draw_atmosphere`] draws sky, sea and haze over the
 //!   terrain from its depth and sea mask; a game with its own sky skips it.
 //! - Depth is reversed-Z with an infinite far plane ([`DEPTH_FORMAT`],

@@ -9,9 +9,9 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
-use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, RenderVertex, drawn_ranges, split_high_low};
+use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, drawn_ranges, lowered_skirts, split_high_low};
 use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
-use wgpu::util::DrawIndexedIndirectArgs;
+use wgpu::util::{DrawIndexedIndirectArgs, DrawIndirectArgs};
 
 use crate::arena::{MeshArena, Slot};
 
@@ -35,8 +35,13 @@ pub const SEA_MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 pub const SMOOTH_SAMPLES: u32 = 4;
 /// Bytes of one chunk's entry in the per-frame chunk table.
 const CHUNK_UNIFORM_BYTES: u64 = size_of::<ChunkUniform>() as u64;
-/// Bytes of one indirect draw.
+/// Bytes of one indexed indirect draw (a surface range).
 const DRAW_ARGS_BYTES: u64 = size_of::<DrawIndexedIndirectArgs>() as u64;
+/// Bytes of one indirect draw without indices (a skirt).
+const SKIRT_ARGS_BYTES: u64 = size_of::<DrawIndirectArgs>() as u64;
+/// A skirt draw's first vertex holds its side in the bits from here up
+/// (the skirt shader's `SIDE_SHIFT`), 6 × its first edge below.
+const SKIRT_SIDE_SHIFT: u32 = 28;
 
 /// Device features the renderer uses where the device has them: indirect
 /// draws that start at a chunk's entry in the chunk table
@@ -129,6 +134,9 @@ pub fn sea_hiding_depth(radius: f64) -> f64 {
 struct ChunkUniform {
     info: [f32; 4],
     skirt_depths: [f32; 4],
+    /// Where the skirt shader reads the chunk's mesh in its page: its first
+    /// vertex, its first edge word, and 1 where its edges are two words.
+    pulls: [u32; 4],
 }
 
 /// Debug views.
@@ -176,16 +184,18 @@ impl std::str::FromStr for DebugView {
 /// the streamer (`nebula_world::stream::MeshHandle`). Dropping it frees its
 /// space in the renderer's buffers.
 pub struct GpuMesh {
-    /// Where its vertices and indices live (`None`: empty, never drawn).
+    /// Where its vertices, indices and skirt edges live (`None`: empty,
+    /// never drawn).
     slot: Option<Slot>,
     surface_side_ranges: [std::ops::Range<usize>; 6],
+    /// Each side's range of skirt edges.
     skirt_ranges: [std::ops::Range<usize>; 4],
     /// The chunk's LOD.
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
-    /// Bytes it takes in the renderer's buffers (its vertices and indices,
-    /// rounded up to whole vertices).
+    /// Bytes it takes in the renderer's buffers (its vertices, indices and
+    /// skirt edges, rounded up to whole vertices).
     pub bytes: u64,
 }
 
@@ -317,7 +327,8 @@ pub struct FrameStats {
     /// draw per chunk range where the device cannot start an indirect draw
     /// at an instance), plus the sky pass's one.
     pub draw_calls: u32,
-    /// Chunk ranges drawn (indirect draws, or direct draws without them).
+    /// Chunk ranges drawn, surface ranges and skirts (indirect draws, or
+    /// direct draws without them).
     pub chunk_draws: u32,
     /// Milliseconds the GPU spent on the terrain and sky passes of an
     /// earlier frame (timestamp queries: the newest finished measurement),
@@ -329,14 +340,32 @@ pub struct FrameStats {
 /// the order a page's draws are grouped.
 const INDEX_FORMATS: [wgpu::IndexFormat; 2] = [wgpu::IndexFormat::Uint32, wgpu::IndexFormat::Uint16];
 
-/// The draws of the meshes of one mesh buffer page with one index format:
-/// a range of the indirect buffer.
+/// The draws of one kind of the meshes of one mesh buffer page: a range
+/// of the indirect draws of that kind.
 #[derive(Clone, Copy, Debug)]
 struct PageDraws {
     page: usize,
-    index_format: wgpu::IndexFormat,
+    /// `Some`: surface ranges of meshes with this index format; `None`:
+    /// skirts.
+    surface: Option<wgpu::IndexFormat>,
     first: u32,
     count: u32,
+}
+
+/// One page's draws of a frame as they are made.
+#[derive(Default)]
+struct PageBatch {
+    /// Surface ranges by index format (as in [`INDEX_FORMATS`]).
+    surface: [Vec<DrawIndexedIndirectArgs>; 2],
+    skirts: Vec<DrawIndirectArgs>,
+}
+
+/// The terrain's two pipelines for one way of drawing: surfaces (indexed,
+/// from a page's vertices) and skirts (no indices: the quad under each
+/// outline edge, from the page's edges and vertices).
+struct TerrainPipelines {
+    surface: wgpu::RenderPipeline,
+    skirts: wgpu::RenderPipeline,
 }
 
 /// Draws a streamed planet with a game's own wgpu device and queue: owns
@@ -349,28 +378,34 @@ pub struct PlanetRenderer {
     queue: wgpu::Queue,
     /// The colour format the pipelines draw to.
     color_format: wgpu::TextureFormat,
-    pipeline: wgpu::RenderPipeline,
-    /// The same pipeline drawing triangle edges, if the device can.
-    wire_pipeline: Option<wgpu::RenderPipeline>,
+    pipeline: TerrainPipelines,
+    /// The same pipelines drawing triangle edges, if the device can.
+    wire_pipeline: Option<TerrainPipelines>,
     frame_buffer: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
     chunk_layout: wgpu::BindGroupLayout,
     chunk_buffer: wgpu::Buffer,
     chunk_group: wgpu::BindGroup,
     chunk_capacity: u64,
-    /// This frame's draws, grouped by page, and the buffer they live in.
+    /// How the vertex shaders read a page (vertices and skirt edges), and
+    /// each page's binding, made when the page first appears.
+    page_layout: wgpu::BindGroupLayout,
+    page_groups: Vec<wgpu::BindGroup>,
+    /// This frame's draws, grouped by page, and the buffer they live in
+    /// (the surface draws, then the skirt draws).
     indirect: wgpu::Buffer,
+    /// Its size in bytes.
     indirect_capacity: u64,
     page_draws: Vec<PageDraws>,
     /// The same draws on the CPU (the direct-draw fallback reads them).
     draw_args: Vec<DrawIndexedIndirectArgs>,
+    skirt_args: Vec<DrawIndirectArgs>,
     /// The frame's chunk constants and draws by page as they are made,
     /// kept for their allocations (made anew each frame, their growth and
     /// page faults were a good part of the frame's encoding).
     chunk_uniforms: Vec<ChunkUniform>,
-    /// The frame's draws by page, then by index format (as in
-    /// [`INDEX_FORMATS`]).
-    by_page: Vec<[Vec<DrawIndexedIndirectArgs>; 2]>,
+    /// The frame's draws by page.
+    by_page: Vec<PageBatch>,
     /// Whether draws go through the indirect buffer (the device can start
     /// an indirect draw at an instance).
     indirect_draws: bool,
@@ -432,7 +467,7 @@ impl MeshUploader {
                 belt.write_buffer(recording, target, offset, size).copy_from_slice(bytes);
             }
         };
-        let slot = self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices);
+        let slot = self.arena.upload(&self.device, &mut write, &mesh.vertices, &mesh.indices, &mesh.skirt_edges);
         *meshes += 1;
         // A full batch is closed here, on the uploading thread: closing
         // validates and records every copy (wgpu's barrier per copy), 0.7
@@ -576,27 +611,47 @@ impl PlanetRenderer {
                 count: None,
             }],
         });
+        let page_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("mesh page layout"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: NonZeroU64::new(size_of::<nebula_meshing::RenderVertex>() as u64),
+                },
+                count: None,
+            }],
+        });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("nebula pipeline layout"),
-            bind_group_layouts: &[Some(&frame_layout), Some(&chunk_layout)],
+            bind_group_layouts: &[Some(&frame_layout), Some(&chunk_layout), Some(&page_layout)],
             immediate_size: 0,
         });
-        // The layout of `nebula_meshing::RenderVertex`.
+        // The surface reads `nebula_meshing::RenderVertex` from the page as
+        // its vertex buffer; the skirts read the page as storage (their
+        // edges and the vertices those name). Both convert the same bytes
+        // to the same values and place them with the same code, so a
+        // skirt's top corners land on the bit-identical positions of the
+        // surface vertices they hang from.
         let attributes =
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Float16x4, 2 => Float16x2, 3 => Snorm16x2, 4 => Uint32];
-        let make_pipeline = |polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| {
+        let vertex_buffer = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<nebula_meshing::RenderVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        let make_pipeline = |entry_point: &str, polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| {
+            let surface = entry_point == "vs_main";
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&layout),
                 vertex: wgpu::VertexState {
                     module: &shader,
-                    entry_point: Some("vs_main"),
+                    entry_point: Some(entry_point),
                     compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: size_of::<RenderVertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &attributes,
-                    })],
+                    buffers: if surface { &vertex_buffer } else { &[] },
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -636,7 +691,11 @@ impl PlanetRenderer {
                 cache: None,
             })
         };
-        let pipeline = make_pipeline(wgpu::PolygonMode::Fill, 1, "nebula terrain pipeline");
+        let make_pipelines = |polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| TerrainPipelines {
+            surface: make_pipeline("vs_main", polygon_mode, samples, label),
+            skirts: make_pipeline("vs_skirt", polygon_mode, samples, &format!("{label}, skirts")),
+        };
+        let pipeline = make_pipelines(wgpu::PolygonMode::Fill, 1, "nebula terrain pipeline");
         let make_sky_layout = |multisampled: bool| {
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("sky layout"),
@@ -721,7 +780,7 @@ impl PlanetRenderer {
         let smooth = formats.into_iter().all(|(format, resolved)| multisamples(format, resolved)).then(|| {
             let sky_layout = make_sky_layout(true);
             SmoothPipelines {
-                terrain: make_pipeline(
+                terrain: make_pipelines(
                     wgpu::PolygonMode::Fill,
                     SMOOTH_SAMPLES,
                     "nebula terrain pipeline, multisampled",
@@ -733,7 +792,7 @@ impl PlanetRenderer {
         let wire_pipeline = device
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE)
-            .then(|| make_pipeline(wgpu::PolygonMode::Line, 1, "nebula wireframe pipeline"));
+            .then(|| make_pipelines(wgpu::PolygonMode::Line, 1, "nebula wireframe pipeline"));
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame uniform"),
             size: size_of::<FrameUniform>() as u64,
@@ -747,7 +806,7 @@ impl PlanetRenderer {
         });
         let (chunk_buffer, chunk_group) = chunk_ring(device, &chunk_layout, 256);
         let indirect_draws = device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
-        let indirect = indirect_buffer(device, 1024);
+        let indirect = indirect_buffer(device, 1024 * DRAW_ARGS_BYTES);
         let timer = device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| GpuTimer::new(device, queue));
         Ok(Self {
             device: device.clone(),
@@ -761,10 +820,13 @@ impl PlanetRenderer {
             chunk_buffer,
             chunk_group,
             chunk_capacity: 256,
+            page_layout,
+            page_groups: Vec::new(),
             indirect,
-            indirect_capacity: 1024,
+            indirect_capacity: 1024 * DRAW_ARGS_BYTES,
             page_draws: Vec::new(),
             draw_args: Vec::new(),
+            skirt_args: Vec::new(),
             chunk_uniforms: Vec::new(),
             by_page: Vec::new(),
             indirect_draws,
@@ -926,16 +988,20 @@ impl PlanetRenderer {
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
         // One entry per chunk in the chunk table, read by the instance
-        // index; one indirect draw per drawn range (the surface but the
-        // sides looking away, and only the skirts lowered this frame),
-        // grouped by the page holding the mesh and its index format.
+        // index; one indirect draw per drawn surface range (the surface
+        // but the sides looking away) and one per skirt lowered this frame,
+        // grouped by the page holding the mesh and by kind.
         let (chunk_uniforms, by_page) = (&mut self.chunk_uniforms, &mut self.by_page);
         chunk_uniforms.clear();
-        by_page.iter_mut().flatten().for_each(Vec::clear);
+        for batch in by_page.iter_mut() {
+            batch.surface.iter_mut().for_each(Vec::clear);
+            batch.skirts.clear();
+        }
         for (mesh, draw) in meshes {
             // An empty mesh draws nothing and needs no constants.
             let Some(slot) = &mesh.slot else { continue };
             let instance = chunk_uniforms.len() as u32;
+            let wide = slot.index_format() == wgpu::IndexFormat::Uint32;
             chunk_uniforms.push(ChunkUniform {
                 info: [
                     f32::from(mesh.lod),
@@ -944,19 +1010,30 @@ impl PlanetRenderer {
                     draw.parent_error.min(1e30) as f32,
                 ],
                 skirt_depths: draw.skirt_depths,
+                pulls: [slot.first_vertex(), slot.first_edge_word(), u32::from(wide), 0],
             });
             if by_page.len() <= slot.page {
                 by_page.resize_with(slot.page + 1, Default::default);
             }
             let format = usize::from(slot.index_format() == INDEX_FORMATS[1]);
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
-            let page = &mut by_page[slot.page][format];
-            for range in drawn_ranges(&mesh.surface_side_ranges, &mesh.skirt_ranges, &draw) {
-                page.push(DrawIndexedIndirectArgs {
+            let batch = &mut by_page[slot.page];
+            for range in drawn_ranges(&mesh.surface_side_ranges, &draw) {
+                batch.surface[format].push(DrawIndexedIndirectArgs {
                     index_count: range.len() as u32,
                     instance_count: 1,
                     first_index: first + range.start as u32,
                     base_vertex: base,
+                    first_instance: instance,
+                });
+            }
+            // A skirt's vertex index is its side, then 6 per edge and the
+            // corner (the skirt shader reads them back).
+            for (side, edges) in lowered_skirts(&mesh.skirt_ranges, &draw) {
+                batch.skirts.push(DrawIndirectArgs {
+                    vertex_count: 6 * edges.len() as u32,
+                    instance_count: 1,
+                    first_vertex: ((side as u32) << SKIRT_SIDE_SHIFT) | (6 * edges.start as u32),
                     first_instance: instance,
                 });
             }
@@ -970,20 +1047,51 @@ impl PlanetRenderer {
             self.queue.write_buffer(&self.chunk_buffer, 0, bytemuck::cast_slice(chunk_uniforms));
         }
         self.draw_args.clear();
+        self.skirt_args.clear();
         self.page_draws.clear();
-        for (page, by_format) in by_page.iter().enumerate() {
-            for (&index_format, draws) in INDEX_FORMATS.iter().zip(by_format).filter(|(_, d)| !d.is_empty()) {
+        for (page, batch) in by_page.iter().enumerate() {
+            for (&index_format, draws) in INDEX_FORMATS.iter().zip(&batch.surface).filter(|(_, d)| !d.is_empty()) {
                 let first = self.draw_args.len() as u32;
-                self.page_draws.push(PageDraws { page, index_format, first, count: draws.len() as u32 });
+                self.page_draws.push(PageDraws { page, surface: Some(index_format), first, count: draws.len() as u32 });
                 self.draw_args.extend_from_slice(draws);
             }
         }
-        if self.indirect_draws && !self.draw_args.is_empty() {
-            if self.draw_args.len() as u64 > self.indirect_capacity {
-                self.indirect_capacity = (self.draw_args.len() as u64).next_power_of_two();
+        for (page, batch) in by_page.iter().enumerate().filter(|(_, b)| !b.skirts.is_empty()) {
+            let first = self.skirt_args.len() as u32;
+            self.page_draws.push(PageDraws { page, surface: None, first, count: batch.skirts.len() as u32 });
+            self.skirt_args.extend_from_slice(&batch.skirts);
+        }
+        // Each page the vertex shaders may read, bound once.
+        {
+            let pages = self.uploader.arena.lock();
+            let limit = self.device.limits().max_storage_buffer_binding_size;
+            for n in self.page_groups.len()..pages.len() {
+                let buffer = &pages.page(n).buffer;
+                self.page_groups.push(self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("mesh page bind group"),
+                    layout: &self.page_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer,
+                            offset: 0,
+                            size: NonZeroU64::new(buffer.size().min(limit)),
+                        }),
+                    }],
+                }));
+            }
+        }
+        let (surface_bytes, skirt_bytes) =
+            (self.draw_args.len() as u64 * DRAW_ARGS_BYTES, self.skirt_args.len() as u64 * SKIRT_ARGS_BYTES);
+        if self.indirect_draws && surface_bytes + skirt_bytes > 0 {
+            if surface_bytes + skirt_bytes > self.indirect_capacity {
+                self.indirect_capacity = (surface_bytes + skirt_bytes).next_power_of_two();
                 self.indirect = indirect_buffer(&self.device, self.indirect_capacity);
             }
             self.queue.write_buffer(&self.indirect, 0, bytemuck::cast_slice(&self.draw_args));
+            if skirt_bytes > 0 {
+                self.queue.write_buffer(&self.indirect, surface_bytes, bytemuck::cast_slice(&self.skirt_args));
+            }
         }
         // The shaded view with its sky is multisampled (resolved into the
         // target and the sea mask); anything else, crack checks and debug
@@ -1066,12 +1174,11 @@ impl PlanetRenderer {
     /// range where the device cannot start an indirect draw at an instance.
     pub fn draw_terrain(&self, pass: &mut wgpu::RenderPass<'_>) -> u32 {
         let Some(prepared) = self.prepared else { return 0 };
-        let pipeline = match (&self.wire_pipeline, prepared.view, &self.smooth) {
+        let pipelines = match (&self.wire_pipeline, prepared.view, &self.smooth) {
             (_, _, Some(smooth)) if prepared.smooth => &smooth.terrain,
             (Some(wire), DebugView::Wireframe, _) => wire,
             _ => &self.pipeline,
         };
-        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.frame_group, &[]);
         // One table of per-chunk constants for the whole frame, read by
         // the instance index, instead of a bind group change per chunk:
@@ -1080,23 +1187,52 @@ impl PlanetRenderer {
         // 8,000 chunks that was never given back.
         pass.set_bind_group(1, &self.chunk_group, &[]);
         let pages = self.uploader.arena.lock();
+        let skirts_from = self.draw_args.len() as u64 * DRAW_ARGS_BYTES;
         let mut calls = 0;
+        // The surfaces (indexed), then the skirts (one pipeline change).
+        let mut drawing_surfaces = None;
         for draws in &self.page_draws {
-            let page = pages.page(draws.page);
-            pass.set_vertex_buffer(0, page.buffer.slice(..));
-            pass.set_index_buffer(page.buffer.slice(..), draws.index_format);
-            if self.indirect_draws {
-                pass.multi_draw_indexed_indirect(&self.indirect, u64::from(draws.first) * DRAW_ARGS_BYTES, draws.count);
-                calls += 1;
-            } else {
-                let first = draws.first as usize;
-                for args in &self.draw_args[first..first + draws.count as usize] {
-                    pass.draw_indexed(
-                        args.first_index..args.first_index + args.index_count,
-                        args.base_vertex,
-                        args.first_instance..args.first_instance + 1,
-                    );
-                    calls += 1;
+            if drawing_surfaces != Some(draws.surface.is_some()) {
+                pass.set_pipeline(if draws.surface.is_some() { &pipelines.surface } else { &pipelines.skirts });
+                drawing_surfaces = Some(draws.surface.is_some());
+            }
+            pass.set_bind_group(2, &self.page_groups[draws.page], &[]);
+            let first = draws.first as usize;
+            let count = draws.count as usize;
+            match draws.surface {
+                Some(index_format) => {
+                    let buffer = &pages.page(draws.page).buffer;
+                    pass.set_vertex_buffer(0, buffer.slice(..));
+                    pass.set_index_buffer(buffer.slice(..), index_format);
+                    if self.indirect_draws {
+                        let offset = u64::from(draws.first) * DRAW_ARGS_BYTES;
+                        pass.multi_draw_indexed_indirect(&self.indirect, offset, draws.count);
+                        calls += 1;
+                    } else {
+                        for args in &self.draw_args[first..first + count] {
+                            pass.draw_indexed(
+                                args.first_index..args.first_index + args.index_count,
+                                args.base_vertex,
+                                args.first_instance..args.first_instance + 1,
+                            );
+                            calls += 1;
+                        }
+                    }
+                }
+                None => {
+                    if self.indirect_draws {
+                        let offset = skirts_from + u64::from(draws.first) * SKIRT_ARGS_BYTES;
+                        pass.multi_draw_indirect(&self.indirect, offset, draws.count);
+                        calls += 1;
+                    } else {
+                        for args in &self.skirt_args[first..first + count] {
+                            pass.draw(
+                                args.first_vertex..args.first_vertex + args.vertex_count,
+                                args.first_instance..args.first_instance + 1,
+                            );
+                            calls += 1;
+                        }
+                    }
                 }
             }
         }
@@ -1156,7 +1292,7 @@ impl PlanetRenderer {
         self.stats = FrameStats {
             encode_ms: start.elapsed().as_secs_f64() * 1e3,
             draw_calls,
-            chunk_draws: self.draw_args.len() as u32,
+            chunk_draws: (self.draw_args.len() + self.skirt_args.len()) as u32,
             gpu_ms: self.timer.as_ref().and_then(|t| t.last_ms),
         };
         self.stats
@@ -1295,7 +1431,7 @@ impl PlanetRenderer {
 
 /// The pipelines of the multisampled shaded view.
 struct SmoothPipelines {
-    terrain: wgpu::RenderPipeline,
+    terrain: TerrainPipelines,
     sky: wgpu::RenderPipeline,
     /// The sky pass's bindings with the depth multisampled.
     sky_layout: wgpu::BindGroupLayout,
@@ -1437,10 +1573,10 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
     (buffer, group)
 }
 
-fn indirect_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
+fn indirect_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("indirect draws"),
-        size: capacity * DRAW_ARGS_BYTES,
+        size: bytes,
         usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })

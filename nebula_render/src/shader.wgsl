@@ -32,25 +32,60 @@ struct Chunk {
     // Skirt depth per horizontal side (+X, −X, +Z, −Z as in
     // nebula_math::FaceDirection::HORIZONTAL), metres.
     skirt_depths: vec4<f32>,
+    // Where the chunk's mesh lies in its page: x its first vertex, y the
+    // first word of its skirt edges, z 1 where an edge is two words (the
+    // mesh's indices are u32), 0 where it is one (a | b << 16).
+    pulls: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // One entry per chunk drawn this frame, indexed by the instance index.
 @group(1) @binding(0) var<storage, read> chunks: array<Chunk>;
+// The mesh page drawn from: vertices (nebula_meshing::RenderVertex, 8
+// words each), indices and skirt edges (nebula_render's arena).
+@group(2) @binding(0) var<storage, read> page: array<u32>;
 
-// nebula_meshing::RenderVertex.
-struct VertexIn {
+// nebula_meshing::RenderVertex as the surface pipeline's vertex buffer
+// gives it (fixed-function fetch: on lavapipe, reading the page as storage
+// took the still land view from 229-231 to 294 ms of GPU time).
+struct VertexAttributes {
     @location(0) position_high: vec3<f32>,
     // xyz: (position − morph target) / 2^LOD; w: target_low.x (f16s).
     @location(1) offset_target_x: vec4<f32>,
     // target_low.yz.
     @location(2) target_yz: vec2<f32>,
     @location(3) normal: vec2<f32>,
-    // bits 0–7: material, 8–15: sky light (0–255), 16–23: flags (1 =
-    // skirt, 2 = constrained, bits 2–3: the side a skirt hangs on), 24–31:
-    // the LOD whose 2^LOD scales the offset.
     @location(4) packed: u32,
 };
+
+// nebula_meshing::RenderVertex, unpacked.
+struct VertexIn {
+    position_high: vec3<f32>,
+    // (position − morph target) / 2^LOD.
+    offset: vec3<f32>,
+    target_low: vec3<f32>,
+    normal: vec2<f32>,
+    // bits 0–7: material, 8–15: sky light (0–255), 16–23: flags (2 =
+    // constrained), 24–31: the LOD whose 2^LOD scales the offset.
+    packed: u32,
+};
+
+// Vertex `i` of the page: 12 bytes of f32 high part, 12 of f16 offset and
+// target low part, 4 of snorm16 normal, 4 packed. The same values as the
+// vertex buffer's formats give (f16 and snorm16 convert exactly).
+fn load_vertex(i: u32) -> VertexIn {
+    let w = i * 8u;
+    var v: VertexIn;
+    v.position_high = vec3<f32>(bitcast<f32>(page[w]), bitcast<f32>(page[w + 1u]), bitcast<f32>(page[w + 2u]));
+    let offset_xy = unpack2x16float(page[w + 3u]);
+    let offset_z_target_x = unpack2x16float(page[w + 4u]);
+    let target_yz = unpack2x16float(page[w + 5u]);
+    v.offset = vec3<f32>(offset_xy, offset_z_target_x.x);
+    v.target_low = vec3<f32>(offset_z_target_x.y, target_yz);
+    v.normal = unpack2x16snorm(page[w + 6u]);
+    v.packed = page[w + 7u];
+    return v;
+}
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -92,10 +127,9 @@ fn decode_normal(e: vec2<f32>) -> vec3<f32> {
     return normalize(n);
 }
 
-@vertex
-fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
+// A surface vertex placed for the frame: the vertex shaders' common part.
+fn place(in: VertexIn, chunk: Chunk) -> VertexOut {
     var out: VertexOut;
-    let chunk = chunks[instance];
     // Vertex − eye from the high and low parts: a function of the vertex's
     // canonical world position, morph target and LOD and of the frame only,
     // never of the chunk, so a vertex shared by two chunks lands on the same
@@ -104,31 +138,73 @@ fn vs_main(in: VertexIn, @builtin(instance_index) instance: u32) -> VertexOut {
     // target plus its offset, so at μ = 0 they all land on the bit-identical
     // target (nebula_meshing::RenderVertex). ldexp by the LOD is exact.
     let base = in.position_high - frame.eye_high.xyz;
-    let target_low = vec3<f32>(in.offset_target_x.w, in.target_yz);
-    let morph_target = base + (target_low - frame.eye_low.xyz);
-    let offset = ldexp(in.offset_target_x.xyz, vec3<i32>(i32(in.packed >> 24u)));
+    let morph_target = base + (in.target_low - frame.eye_low.xyz);
+    let offset = ldexp(in.offset, vec3<i32>(i32(in.packed >> 24u)));
     var relative = morph_target + offset;
     var mu = 1.0;
     if (frame.params.w > 0.5) {
         mu = morph_factor(chunk.info.w, relative);
         relative = morph_target + mu * offset;
     }
-    let flags = (in.packed >> 16u) & 0xffu;
-    if ((flags & 1u) != 0u) {
-        // A skirt vertex hangs from the (morphed) surface vertex towards the
-        // planet centre, as deep as its side needs this frame.
-        let centre = -(frame.eye_high.xyz + frame.eye_low.xyz);
-        let depth = chunk.skirt_depths[(flags >> 2u) & 3u];
-        relative = relative + normalize(centre - relative) * depth;
-    }
     out.clip = frame.view_proj * vec4<f32>(relative, 1.0);
     out.normal = decode_normal(in.normal);
     out.material = in.packed & 0xffu;
     out.sky = f32((in.packed >> 8u) & 0xffu) / 255.0;
-    out.flags = flags;
+    out.flags = (in.packed >> 16u) & 0xffu;
     out.morph = mu;
     out.lod_id = chunk.info.xz;
     out.relative = relative;
+    return out;
+}
+
+// A surface: indexed draws from the page as vertex buffer.
+@vertex
+fn vs_main(in: VertexAttributes, @builtin(instance_index) instance: u32) -> VertexOut {
+    var v: VertexIn;
+    v.position_high = in.position_high;
+    v.offset = in.offset_target_x.xyz;
+    v.target_low = vec3<f32>(in.offset_target_x.w, in.target_yz);
+    v.normal = in.normal;
+    v.packed = in.packed;
+    return place(v, chunks[instance]);
+}
+
+// The skirt draws' vertex index: the side in the bits from SIDE_SHIFT up
+// (nebula_render's SKIRT_SIDE_SHIFT), below them 6 per edge of the chunk's
+// skirt edges and the corner.
+const SIDE_SHIFT: u32 = 28u;
+// Corner c of an edge's quad is end (SKIRT_ENDS >> c) & 1 (0 = a, 1 = b)
+// of the edge, lowered where (SKIRT_LOWERED >> c) & 1: the triangles
+// (a low, b, a) and (b low, b, a low), nebula_meshing::SKIRT_CORNERS.
+const SKIRT_ENDS: u32 = 0x1au;
+const SKIRT_LOWERED: u32 = 0x29u;
+
+// A skirt: the quad under each outline edge of a side (a → b along the
+// surface), its top corners the surface vertices themselves, read from the
+// page and placed by the same code as the surface's, its lower ones moved towards the planet centre as deep as the
+// side needs this frame.
+@vertex
+fn vs_skirt(@builtin(vertex_index) i: u32, @builtin(instance_index) instance: u32) -> VertexOut {
+    let chunk = chunks[instance];
+    let side = i >> SIDE_SHIFT;
+    let local = i & ((1u << SIDE_SHIFT) - 1u);
+    let edge = local / 6u;
+    let corner = local % 6u;
+    let end = (SKIRT_ENDS >> corner) & 1u;
+    var vertex: u32;
+    if (chunk.pulls.z == 0u) {
+        vertex = (page[chunk.pulls.y + edge] >> (16u * end)) & 0xffffu;
+    } else {
+        vertex = page[chunk.pulls.y + 2u * edge + end];
+    }
+    var out = place(load_vertex(chunk.pulls.x + vertex), chunk);
+    if (((SKIRT_LOWERED >> corner) & 1u) != 0u) {
+        let centre = -(frame.eye_high.xyz + frame.eye_low.xyz);
+        out.relative = out.relative + normalize(centre - out.relative) * chunk.skirt_depths[side];
+        out.clip = frame.view_proj * vec4<f32>(out.relative, 1.0);
+    }
+    // Every corner marks the triangle as skirt (flags flat, from any).
+    out.flags = 1u | (side << 2u);
     return out;
 }
 

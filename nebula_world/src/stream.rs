@@ -458,18 +458,17 @@ pub struct MeshCache<H> {
 }
 
 impl<H: MeshHandle> MeshCache<H> {
-    /// The default [`MeshCache::max_bytes`]: 384 MiB. It holds a little
-    /// more than 512 MiB did before meshes shrank by a third on the GPU
-    /// (2026-11-27: 32-byte vertices, u16 indices), which a 640×400 view
-    /// held still and then turned needs to keep its detail: an Earth view
-    /// 1 km up holds about 30,000 chunks with what is out of view, 330 MB
-    /// in the bytes of before, about 220 MB now (the still view's own
-    /// meshes went 57.0 → 38.1 MB).
-    /// A game drawing more pixels wants more (the meshes a view draws grow
-    /// with its pixels at a given τ).
+    /// The default [`MeshCache::max_bytes`]: 256 MiB. It holds about what
+    /// 360 MiB held before skirts were kept as outline edges (2026-11-27:
+    /// the still Earth view 1 km up, 38.1 → 27.1 MB of meshes) and 512 MiB
+    /// before meshes shrank by a third that morning, which a 640×400 view
+    /// held still and then turned needs to keep its detail (the streaming
+    /// test that does it keeps 84–94 % of the settled triangles at this
+    /// budget). A game drawing more pixels wants more (the meshes a view
+    /// draws grow with its pixels at a given τ).
     #[must_use]
     pub const fn default_max_bytes() -> u64 {
-        384 << 20
+        256 << 20
     }
 
     /// The cached columns, to change ([`unshared`]).
@@ -839,6 +838,9 @@ pub struct StageTimes {
     /// Whether the selection was planned ahead on the LOD thread (else on
     /// the frame thread: no plan made ahead could serve this camera).
     pub planned_ahead: bool,
+    /// Wall time the update waited for the LOD thread to finish what it
+    /// was asked for the frame before.
+    pub lod_wait_ms: f64,
     /// Meshing jobs collected this frame (CPU time of the jobs, on worker
     /// threads).
     pub meshing_ms: f64,
@@ -1249,6 +1251,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.frame += 1;
         let start = Instant::now();
         let mut made_ahead = self.take_outcome();
+        self.times.lod_wait_ms = start.elapsed().as_secs_f64() * 1e3;
         let view = self.voxels.layer_view(camera.position);
         if view != self.view {
             self.view = view;

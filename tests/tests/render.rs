@@ -521,7 +521,8 @@ fn the_crack_check_sees_drawn_geometry_missing_from_a_frame() {
 /// page then, hands freed space (a dropped slot) to the next mesh, never
 /// lets two live meshes overlap, and keeps a mesh's indices right after
 /// its vertices in one range, whatever their proportion, as u16 where the
-/// mesh has at most 65,536 vertices.
+/// mesh has at most 65,536 vertices, and its skirt edges right after its
+/// indices (one word per edge with u16 indices, two with u32).
 #[test]
 fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     use nebula_meshing::RenderVertex;
@@ -540,14 +541,16 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     };
     // One unit (a vertex's size) holds the three indices: a quarter page.
     let quarter = vec![vertex; PAGE_UNITS as usize / 4 - 1];
-    let write = |vertices, indices: &[u32]| {
+    let write_with_edges = |vertices, indices: &[u32], edges: &[[u32; 2]]| {
         arena.upload(
             &gpu.device,
             &mut |target, offset, bytes| gpu.queue.write_buffer(target, offset, bytes),
             vertices,
             indices,
+            edges,
         )
     };
+    let write = |vertices, indices: &[u32]| write_with_edges(vertices, indices, &[]);
     let upload = || write(&quarter, &[0, 1, 2]).expect("uploaded");
     assert!(write(&[], &[]).is_none(), "an empty mesh takes no space");
     let mut slots: Vec<_> = (0..4).map(|_| upload()).collect();
@@ -578,6 +581,18 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     assert_eq!(u64::from(index_heavy.first_index()) * 2, vertex_bytes(&index_heavy) + 4 * unit_bytes());
     assert_eq!((index_heavy.page, arena.lock().capacity_bytes()), (0, 2 * u64::from(PAGE_UNITS) * unit_bytes()));
     assert_eq!(index_heavy.bytes(), u64::from(PAGE_UNITS) * unit_bytes());
+    // Skirt edges after the indices (padded to a word): 4 vertices, 3 u16
+    // indices (2 words) and 5 one-word edges take 5 units; with u32
+    // indices (a mesh past 65,536 vertices) each edge takes two words.
+    let edges = [[0, 1]; 5];
+    let skirted = write_with_edges(&quarter[..4], &[0, 1, 2], &edges).expect("uploaded");
+    assert_eq!(u64::from(skirted.first_edge_word()) * 4, u64::from(skirted.first_index()) * 2 + 8);
+    assert_eq!(skirted.bytes(), 5 * unit_bytes());
+    let wide = vec![vertex; (1 << 16) + 1];
+    let wide_skirted = write_with_edges(&wide, &[0, 1, 2], &edges).expect("uploaded");
+    assert_eq!(wide_skirted.index_format(), wgpu::IndexFormat::Uint32);
+    assert_eq!(u64::from(wide_skirted.first_edge_word()) * 4, u64::from(wide_skirted.first_index()) * 4 + 12);
+    assert_eq!(wide_skirted.bytes(), (wide.len() as u64 + 2) * unit_bytes());
 }
 
 fn unit_bytes() -> u64 {
