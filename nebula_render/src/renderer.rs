@@ -323,7 +323,8 @@ pub struct FrameStats {
     /// Milliseconds of CPU time to write the frame's constants and draw
     /// list, record the passes and submit them (not waiting for the GPU).
     pub encode_ms: f64,
-    /// Draw commands recorded: one multi-draw per mesh buffer page (or a
+    /// Draw commands recorded: per mesh buffer page one multi-draw for the
+    /// surfaces of each index format held and one for the skirts (or a
     /// draw per chunk range where the device cannot start an indirect draw
     /// at an instance), plus the sky pass's one.
     pub draw_calls: u32,
@@ -598,32 +599,9 @@ impl PlanetRenderer {
                 count: None,
             }],
         });
-        let chunk_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("chunk layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
-                    has_dynamic_offset: false,
-                    min_binding_size: NonZeroU64::new(CHUNK_UNIFORM_BYTES),
-                },
-                count: None,
-            }],
-        });
-        let page_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("mesh page layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
-                    has_dynamic_offset: false,
-                    min_binding_size: NonZeroU64::new(size_of::<nebula_meshing::RenderVertex>() as u64),
-                },
-                count: None,
-            }],
-        });
+        let chunk_layout = read_only_storage_layout(device, "chunk layout", CHUNK_UNIFORM_BYTES);
+        let page_layout =
+            read_only_storage_layout(device, "mesh page layout", size_of::<nebula_meshing::RenderVertex>() as u64);
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("nebula pipeline layout"),
             bind_group_layouts: &[Some(&frame_layout), Some(&chunk_layout), Some(&page_layout)],
@@ -1169,9 +1147,10 @@ impl PlanetRenderer {
     }
 
     /// Records the prepared frame's terrain into `pass` (one begun by
-    /// [`Self::terrain_pass`]); returns the draw commands recorded: one
-    /// multi-draw-indirect per mesh buffer page, or one draw per chunk
-    /// range where the device cannot start an indirect draw at an instance.
+    /// [`Self::terrain_pass`]); returns the draw commands recorded: per mesh
+    /// buffer page a multi-draw-indirect for its surfaces (per index format)
+    /// and one for its skirts, or one draw per chunk range where the device
+    /// cannot start an indirect draw at an instance.
     pub fn draw_terrain(&self, pass: &mut wgpu::RenderPass<'_>) -> u32 {
         let Some(prepared) = self.prepared else { return 0 };
         let pipelines = match (&self.wire_pipeline, prepared.view, &self.smooth) {
@@ -1556,6 +1535,24 @@ fn multisampled_depth_shader() -> String {
     let source = include_str!("shader.wgsl");
     debug_assert!(source.contains(DECLARATION), "shader.wgsl no longer declares {DECLARATION}");
     source.replace(DECLARATION, "var terrain_depth: texture_depth_multisampled_2d;")
+}
+
+/// A bind group layout of one read-only storage buffer the vertex shaders
+/// read (the chunk table, a mesh page).
+fn read_only_storage_layout(device: &wgpu::Device, label: &str, min_bytes: u64) -> wgpu::BindGroupLayout {
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: NonZeroU64::new(min_bytes),
+            },
+            count: None,
+        }],
+    })
 }
 
 fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u64) -> (wgpu::Buffer, wgpu::BindGroup) {

@@ -1063,8 +1063,9 @@ fn multisampling_smooths_the_shaded_view_and_leaves_crack_checks_alone() {
     }
 }
 
-/// A frame of thousands of chunks is a handful of draw commands (one
-/// multi-draw-indirect per mesh buffer page, one for the sky), and those
+/// A frame of thousands of chunks is a handful of draw commands (per mesh
+/// buffer page a multi-draw-indirect for surfaces and one for skirts, one
+/// for the sky), and those
 /// indirect draws draw exactly the picture that a draw call per chunk
 /// range draws (the control: thousands of draw calls). Random Earth poses
 /// 300–1,500 m over land, shaded with the sky and over a background. (That
