@@ -380,10 +380,10 @@ impl ChunkMesh {
         // renumbered in order.
         let mut renumbered = vec![u32::MAX; self.vertices.len()];
         let mut vertices = Vec::with_capacity(self.vertices.len());
-        for (i, vertex) in self.render_vertices().into_iter().enumerate() {
+        for (i, number) in renumbered.iter_mut().enumerate() {
             if self.skirt_top(i).is_none() {
-                renumbered[i] = vertices.len() as u32;
-                vertices.push(vertex);
+                *number = vertices.len() as u32;
+                vertices.push(self.render_vertex(i));
             }
         }
         let indices = self.indices[..self.surface_index_count].iter().map(|&i| renumbered[i as usize]).collect();
@@ -401,30 +401,31 @@ impl ChunkMesh {
     /// [`ChunkMesh::vertices`], so [`ChunkMesh::indices`] index them.
     #[must_use]
     pub fn render_vertices(&self) -> Vec<RenderVertex> {
+        (0..self.vertices.len()).map(|i| self.render_vertex(i)).collect()
+    }
+
+    /// Vertex `i` in GPU form.
+    fn render_vertex(&self, i: usize) -> RenderVertex {
         let lod = self.key.lod;
-        let scale = f64::from(1_u32 << lod).recip();
-        (0..self.vertices.len())
-            .map(|i| {
-                let v = self.vertices[i];
-                // A skirt vertex carries the vertex it hangs from; the
-                // renderer lowers it by the side's depth.
-                let from = self.skirt_top(i).map_or(i, |top| top as usize);
-                let (world, target) = (self.world[from], self.morph_world[from]);
-                let position_high = target.as_vec3();
-                let target_low = target - position_high.as_dvec3();
-                let offset = (world - target) * scale;
-                RenderVertex {
-                    position_high: position_high.to_array(),
-                    offset: offset.to_array().map(f16::from_f64),
-                    target_low: target_low.to_array().map(f16::from_f64),
-                    normal: encode_normal(v.normal),
-                    packed: u32::from(v.material)
-                        | (u32::from(v.sky_light) << 8)
-                        | (u32::from(v.flags & 0xff) << 16)
-                        | (u32::from(lod) << OFFSET_LOD_SHIFT),
-                }
-            })
-            .collect()
+        let v = self.vertices[i];
+        // A skirt vertex carries the vertex it hangs from; the renderer
+        // lowers it by the side's depth.
+        let from = self.skirt_top(i).map_or(i, |top| top as usize);
+        let (world, target) = (self.world[from], self.morph_world[from]);
+        let position_high = target.as_vec3();
+        let target_low = target - position_high.as_dvec3();
+        // 2^-LOD is exact: the offset keeps its bits at every LOD.
+        let offset = (world - target) * f64::from(1_u32 << lod).recip();
+        RenderVertex {
+            position_high: position_high.to_array(),
+            offset: offset.to_array().map(f16::from_f64),
+            target_low: target_low.to_array().map(f16::from_f64),
+            normal: encode_normal(v.normal),
+            packed: u32::from(v.material)
+                | (u32::from(v.sky_light) << 8)
+                | (u32::from(v.flags & 0xff) << 16)
+                | (u32::from(lod) << OFFSET_LOD_SHIFT),
+        }
     }
 
     /// The skirt depths this mesh was generated with, as a [`ChunkDraw`]

@@ -620,8 +620,11 @@ impl PlanetRenderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        let make_pipeline = |entry_point: &str, polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| {
-            let surface = entry_point == "vs_main";
+        let make_pipeline = |entry_point: &str,
+                             buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+                             polygon_mode: wgpu::PolygonMode,
+                             samples: u32,
+                             label: &str| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&layout),
@@ -629,7 +632,7 @@ impl PlanetRenderer {
                     module: &shader,
                     entry_point: Some(entry_point),
                     compilation_options: Default::default(),
-                    buffers: if surface { &vertex_buffer } else { &[] },
+                    buffers,
                 },
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
@@ -670,8 +673,8 @@ impl PlanetRenderer {
             })
         };
         let make_pipelines = |polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| TerrainPipelines {
-            surface: make_pipeline("vs_main", polygon_mode, samples, label),
-            skirts: make_pipeline("vs_skirt", polygon_mode, samples, &format!("{label}, skirts")),
+            surface: make_pipeline("vs_main", &vertex_buffer, polygon_mode, samples, label),
+            skirts: make_pipeline("vs_skirt", &[], polygon_mode, samples, &format!("{label}, skirts")),
         };
         let pipeline = make_pipelines(wgpu::PolygonMode::Fill, 1, "nebula terrain pipeline");
         let make_sky_layout = |multisampled: bool| {
