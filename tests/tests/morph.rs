@@ -309,7 +309,8 @@ fn eye_at(planet: &ProceduralPlanet, column: ChunkColumn, distance: f64, elevati
     centre + dir * high
 }
 
-fn cases(planet: &ProceduralPlanet, seed: u64, count: usize) -> Vec<Case> {
+/// `count` random switches, parents at LODs 1 to `coarsest` in turn.
+fn cases(planet: &ProceduralPlanet, seed: u64, count: usize, coarsest: u8) -> Vec<Case> {
     let layout = planet.layout();
     let mut state = seed;
     let mut next = |n: u32| {
@@ -318,7 +319,7 @@ fn cases(planet: &ProceduralPlanet, seed: u64, count: usize) -> Vec<Case> {
     };
     (0..count)
         .map(|i| {
-            let lod = 1 + (i % usize::from(layout.max_lod().min(8))) as u8;
+            let lod = 1 + (i % usize::from(coarsest.min(layout.max_lod()))) as u8;
             let face = CubeFace::ALL[i % 6];
             let per_edge = layout.chunks_per_edge(lod);
             let parent = ChunkColumn { face, lod, x: next(per_edge), y: next(per_edge) };
@@ -360,7 +361,7 @@ fn the_pop_at_a_lod_switch_is_measured_against_the_parents_own_mesh() {
     let hysteresis = LodSettings::default().hysteresis;
     let mut report = Vec::new();
     for (name, planet, bound) in [("earth", &earth, 1.2), ("small", &small, 2.6)] {
-        let cases = cases(planet, 0x9e37, 16);
+        let cases = cases(planet, 0x9e37, 16, 8);
         for height in [400.0, 720.0] {
             let settings = LodSettings { screen_height_px: height, ..LodSettings::default() };
             let k = settings.screen_space().expect("settings").k();
@@ -415,8 +416,8 @@ fn has_ceiling(meshes: &[ChunkMesh]) -> bool {
 fn cave_cases(planet: &ProceduralPlanet, seed: u64, count: usize) -> Vec<Case> {
     let mut found = Vec::new();
     for batch in 0..40 {
-        for case in cases(planet, seed.wrapping_add(batch), 32) {
-            if case.parent.lod <= 4 && has_ceiling(&case.children) && found.len() < count {
+        for case in cases(planet, seed.wrapping_add(batch), 16, 4) {
+            if has_ceiling(&case.children) && found.len() < count {
                 found.push(case);
             }
         }
