@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nebula_voxel::{DVec3, PlanetSettings, Voxel, VoxelCoord, VoxelSource};
+use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord, VoxelSource};
 
 use crate::*;
 
@@ -15,6 +15,29 @@ fn scratch(name: &str) -> PathBuf {
 
 fn unit(state: &mut u64) -> f64 {
     nebula_math::unit_random(state)
+}
+
+/// A point in the air of one of `planet`'s deep caves (sealed: its layer
+/// view is the sealed caves'), with air 1.5 m over it too, from random
+/// directions drawn from `state`.
+fn air_in_a_deep_cave(planet: &ProceduralPlanet, state: &mut u64) -> DVec3 {
+    let layout = planet.layout();
+    let radius = layout.sphere().radius();
+    let air = |p: DVec3| layout.voxel_at(p).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid());
+    for _ in 0..5_000 {
+        let dir = DVec3::new(unit(state) - 0.5, unit(state) - 0.5, unit(state) - 0.5).normalize();
+        let ground = planet.surface_point(dir).length();
+        if ground < radius + 40.0 {
+            continue;
+        }
+        let found = (1..140).map(|k| dir * (ground - f64::from(k) * 0.5)).find(|&p| {
+            planet.layer_view(p) == nebula_voxel::LayerView::FromSealedCaves && air(p) && air(p + dir * 1.5)
+        });
+        if let Some(point) = found {
+            return point;
+        }
+    }
+    panic!("no deep cave found");
 }
 
 /// A world at `path` with spheres dug and boxes and single blocks placed
@@ -587,6 +610,58 @@ mod walking {
     }
 
     #[test]
+    fn a_walker_stands_and_walks_on_a_caves_floor_and_picks_its_ceiling() {
+        // Walking and picking read the voxels, caves included: a walker let
+        // go in one of the Earth's deep caves lands on the cave's floor,
+        // tens of metres under the ground, walks about it without entering
+        // the rock, and a pick straight up from its eye hits the cave's
+        // ceiling, not the ground's surface. The control: the same fall
+        // with no collision goes through the floor into the rock.
+        let planet = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+        let size = planet.voxel_size();
+        let mut state = 0xca7e_u64;
+        for _ in 0..3 {
+            let start = super::air_in_a_deep_cave(&planet, &mut state);
+            let up = start.normalize();
+            let ground = planet.surface_point(up).length();
+            let mut walker = Walker { step_up: 1.05 * size, ..Walker::new(start) };
+            for _ in 0..240 {
+                walker.step(&planet, 1.0 / 60.0, DVec3::ZERO, None).unwrap();
+            }
+            assert!(walker.on_ground, "no floor under {start:?}");
+            let floor = walker.body.feet;
+            assert!(floor.length() <= start.length() + 0.01 && floor.length() < ground - 10.0, "{floor:?}");
+            // Standing on rock: in air, and a tenth of a voxel lower it
+            // would be in the floor.
+            assert!(!is_solid(&planet, floor + up * 0.5 * size).unwrap());
+            let lower = Body { feet: floor - up * 0.1 * size, ..walker.body };
+            assert!(deepest_overlap(&planet, lower) > 0.0, "nothing under the walker at {floor:?}");
+            let mut worst = f64::NEG_INFINITY;
+            for step in 0..240 {
+                let (e, n, _) = local_frame(walker.body.feet).unwrap();
+                let angle = step as f64 * 0.03 + unit(&mut state);
+                walker.step(&planet, 1.0 / 60.0, (e * angle.cos() + n * angle.sin()) * 3.0, None).unwrap();
+                worst = worst.max(deepest_overlap(&planet, walker.body));
+            }
+            assert!(worst <= 0.02 * size, "a walk in a cave entered a block {worst} m deep");
+            let feet = walker.body.feet;
+            assert!(feet.length() < planet.surface_point(feet).length() - 10.0, "walked out of the cave");
+            let eye = walker.eye().unwrap();
+            let over = planet.surface_point(eye).length() - eye.length();
+            let hit = nebula_voxel::pick(&planet, eye, eye.normalize(), 300.0).unwrap().expect("a ceiling");
+            assert!(hit.distance < over - 5.0, "the pick went {} m of {over} m to the surface", hit.distance);
+            assert!(hit.distance > 0.0);
+            // Control: no collision, the same fall sinks into the floor.
+            let mut ghost = Walker::new(floor + up * 0.01);
+            for _ in 0..60 {
+                ghost.vertical_speed -= crate::walk::GRAVITY / 60.0;
+                ghost.body.feet += up * ghost.vertical_speed / 60.0;
+            }
+            assert!(deepest_overlap(&planet, ghost.body) > 0.1 * size, "the overlap check cannot see the floor");
+        }
+    }
+
+    #[test]
     fn walls_stop_a_walker_and_random_walks_never_enter_a_block() {
         // A wall of stone built in front of the walker stops it; then random
         // walks and jumps (small planet and Earth, across a cube edge too)
@@ -852,29 +927,9 @@ mod streaming {
         // it (LODs 0–2), nothing else, every frame of the way complete;
         // back up it frees them.
         let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
-        let layout = *planet.layout();
-        let sphere = layout.sphere();
         // A deep cave: air under the ground where the planet says an eye
         // sees what is buried.
-        let mut state = 17u64;
-        let mut tries = 0;
-        let deep_eye = loop {
-            tries += 1;
-            assert!(tries < 5_000, "no deep cave found");
-            let dir = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5).normalize();
-            let ground = planet.surface_point(dir).length();
-            if ground < sphere.radius() + 40.0 {
-                continue;
-            }
-            let found = (1..140).map(|k| dir * (ground - f64::from(k) * 0.5)).find(|&p| {
-                planet.layer_view(p) == LayerView::FromSealedCaves
-                    && layout.voxel_at(p).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
-                    && layout.voxel_at(p + dir * 1.5).is_ok_and(|at| !planet.voxel(at).unwrap().is_solid())
-            });
-            if let Some(eye) = found {
-                break eye;
-            }
-        };
+        let deep_eye = super::air_in_a_deep_cave(&planet, &mut 17u64);
         let up = deep_eye.normalize();
         let above = planet.surface_point(up) + up * 30.0;
         let side = up.any_orthonormal_vector();
