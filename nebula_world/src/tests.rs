@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nebula_voxel::{DVec3, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord, VoxelSource};
+use nebula_voxel::{DVec3, LayerView, PlanetSettings, ProceduralPlanet, Voxel, VoxelCoord, VoxelSource};
 
 use crate::*;
 
@@ -30,9 +30,9 @@ fn air_in_a_deep_cave(planet: &ProceduralPlanet, state: &mut u64) -> DVec3 {
         if ground < radius + 40.0 {
             continue;
         }
-        let found = (1..140).map(|k| dir * (ground - f64::from(k) * 0.5)).find(|&p| {
-            planet.layer_view(p) == nebula_voxel::LayerView::FromSealedCaves && air(p) && air(p + dir * 1.5)
-        });
+        let found = (1..140)
+            .map(|k| dir * (ground - f64::from(k) * 0.5))
+            .find(|&p| planet.layer_view(p) == LayerView::FromSealedCaves && air(p) && air(p + dir * 1.5));
         if let Some(point) = found {
             return point;
         }
@@ -609,6 +609,17 @@ mod walking {
         assert!(Orientation::looking(start, start).is_err(), "straight up has no heading");
     }
 
+    /// A body from `feet` after a second of falling along −`up` with no
+    /// collision (the walking tests' control).
+    fn fall_without_collision(feet: DVec3, up: DVec3) -> Body {
+        let mut ghost = Walker::new(feet);
+        for _ in 0..60 {
+            ghost.vertical_speed -= crate::walk::GRAVITY / 60.0;
+            ghost.body.feet += up * ghost.vertical_speed / 60.0;
+        }
+        ghost.body
+    }
+
     #[test]
     fn a_walker_stands_and_walks_on_a_caves_floor_and_picks_its_ceiling() {
         // Walking and picking read the voxels, caves included: a walker let
@@ -652,12 +663,8 @@ mod walking {
             assert!(hit.distance < over - 5.0, "the pick went {} m of {over} m to the surface", hit.distance);
             assert!(hit.distance > 0.0);
             // Control: no collision, the same fall sinks into the floor.
-            let mut ghost = Walker::new(floor + up * 0.01);
-            for _ in 0..60 {
-                ghost.vertical_speed -= crate::walk::GRAVITY / 60.0;
-                ghost.body.feet += up * ghost.vertical_speed / 60.0;
-            }
-            assert!(deepest_overlap(&planet, ghost.body) > 0.1 * size, "the overlap check cannot see the floor");
+            let ghost = fall_without_collision(floor + up * 0.01, up);
+            assert!(deepest_overlap(&planet, ghost) > 0.1 * size, "the overlap check cannot see the floor");
         }
     }
 
@@ -721,15 +728,8 @@ mod walking {
                 assert!(worst <= 0.02 * size, "a walk entered a block {worst} m deep");
             }
             // Control: the same fall with no collision sinks into the ground.
-            let mut ghost = Walker::new(feet);
-            for _ in 0..60 {
-                ghost.vertical_speed -= crate::walk::GRAVITY / 60.0;
-                ghost.body.feet += up * ghost.vertical_speed / 60.0;
-            }
-            assert!(
-                deepest_overlap(&*source, ghost.body) > 0.1 * size,
-                "the overlap check cannot see a body in the ground"
-            );
+            let ghost = fall_without_collision(feet, up);
+            assert!(deepest_overlap(&*source, ghost) > 0.1 * size, "the overlap check cannot see a body in the ground");
         }
     }
 

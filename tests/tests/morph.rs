@@ -34,6 +34,13 @@ struct Case {
     parent: ChunkColumn,
 }
 
+impl Case {
+    /// The children's and the parent's surfaces, indexed for the pop.
+    fn surfaces(&self) -> [Surface<'_>; 2] {
+        [Surface::new(&self.children, self.parent.lod), Surface::new(&self.parent_meshes, self.parent.lod)]
+    }
+}
+
 fn meshes(planet: &ProceduralPlanet, column: ChunkColumn) -> Vec<ChunkMesh> {
     let mut buffer = ChunkMeshBuffer::new();
     planet
@@ -368,8 +375,7 @@ fn the_pop_at_a_lod_switch_is_measured_against_the_parents_own_mesh() {
             let (mut gap_on, mut gap_off, mut surface_on, mut surface_off) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
             for case in &cases {
                 let layout = planet.layout();
-                let sides =
-                    [Surface::new(&case.children, case.parent.lod), Surface::new(&case.parent_meshes, case.parent.lod)];
+                let sides = case.surfaces();
                 let errors = [layout.merge_error(case.parent.lod - 1), layout.merge_error(case.parent.lod)];
                 let split = layout.voxel_edge(case.parent.lod) * k / settings.threshold_px;
                 for distance in [split, split / (1.0 - hysteresis)] {
@@ -442,13 +448,11 @@ fn the_pop_over_caves_at_a_lod_switch_is_measured() {
     // points farther than that is counted apart; the dark tunnel walls
     // under the ground are measured the same way for the record.
     // Measured 2026-11-27 (see the README): the lit surfaces pop no more
-    // than the heightfield's ground does (the other test's bounds), and as
-    // much against a parent without caves: at the switch distance a mouth
-    // that closes moves what the sky lights by less than the ground's own
-    // pop. The control: against the parent of the planet without caves,
-    // more of the children's surface (their tunnels) lies farther than two
-    // parent voxels: the parent keeps the tunnels' cores, and the measure
-    // sees them go.
+    // than the heightfield's ground does (the other test's bounds). The
+    // control: against the parent of the planet without caves, more of
+    // the children's surface (their tunnels) lies farther than two parent
+    // voxels: the parent keeps the tunnels' cores, and the measure sees
+    // them go.
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).expect("earth");
     let small = ProceduralPlanet::new(PlanetSettings::small(3)).expect("small");
     let without_caves = |settings: PlanetSettings| {
@@ -462,36 +466,32 @@ fn the_pop_over_caves_at_a_lod_switch_is_measured() {
     for (name, planet, bare, bound) in [("earth", &earth, &earth_bare, 1.2), ("small", &small, &small_bare, 2.6)] {
         let layout = planet.layout();
         let cases = cave_cases(planet, 0x51de, 12);
-        // [lit, all] × [geomorphed, not]: worst px, unmatched, points.
-        let mut found = [[(0.0_f64, 0_usize, 0_usize); 2]; 2];
-        let mut control = (0.0_f64, 0_usize);
+        // Worst px, points farther than two parent voxels, points: lit
+        // surfaces geomorphed and not, every surface geomorphed, and every
+        // surface against the parent without caves (the control).
+        let (mut lit, mut lit_unmorphed, mut all, mut control) =
+            ((0.0_f64, 0_usize, 0_usize), (0.0, 0, 0), (0.0, 0, 0), (0.0, 0, 0));
+        let add = |tally: &mut (f64, usize, usize), pop: Pop| {
+            *tally = (tally.0.max(pop.worst_px), tally.1 + pop.unmatched, tally.2 + pop.points);
+        };
         for case in &cases {
-            let sides =
-                [Surface::new(&case.children, case.parent.lod), Surface::new(&case.parent_meshes, case.parent.lod)];
-            let bare_parent = meshes(bare, case.parent);
-            let control_sides =
-                [Surface::new(&case.children, case.parent.lod), Surface::new(&bare_parent, case.parent.lod)];
             let control_case = Case {
                 children: case.children.clone(),
-                parent_meshes: bare_parent.clone(),
+                parent_meshes: meshes(bare, case.parent),
                 child_voxel_edge: case.child_voxel_edge,
                 parent: case.parent,
             };
+            let (sides, control_sides) = (case.surfaces(), control_case.surfaces());
             let errors = [layout.merge_error(case.parent.lod - 1), layout.merge_error(case.parent.lod)];
             let split = layout.voxel_edge(case.parent.lod) * k / settings.threshold_px;
             for distance in [split, split / (1.0 - hysteresis)] {
                 for (elevation, azimuth) in [(5.0, 0.0), (25.0, 130.0), (60.0, 250.0)] {
                     let eye = eye_at(planet, case.parent, distance, elevation, azimuth);
-                    let view = PopView { eye, k, morph: true, errors, lit_only: false };
-                    let pop = surface_pop(&control_case, &control_sides, &view);
-                    control = (control.0.max(pop.worst_px), control.1 + pop.unmatched);
-                    for (which, lit_only) in [(0, true), (1, false)] {
-                        for (m, morph) in [(0, true), (1, false)] {
-                            let pop = surface_pop(case, &sides, &PopView { eye, k, morph, errors, lit_only });
-                            let slot = &mut found[which][m];
-                            *slot = (slot.0.max(pop.worst_px), slot.1 + pop.unmatched, slot.2 + pop.points);
-                        }
-                    }
+                    let view = |morph: bool, lit_only: bool| PopView { eye, k, morph, errors, lit_only };
+                    add(&mut lit, surface_pop(case, &sides, &view(true, true)));
+                    add(&mut lit_unmorphed, surface_pop(case, &sides, &view(false, true)));
+                    add(&mut all, surface_pop(case, &sides, &view(true, false)));
+                    add(&mut control, surface_pop(&control_case, &control_sides, &view(true, false)));
                 }
             }
         }
@@ -501,21 +501,20 @@ fn the_pop_over_caves_at_a_lod_switch_is_measured() {
              farther than two parent voxels ({:.2} px, {:.3} % without geomorphing); all surfaces, tunnel walls \
              included: {:.2} px, {:.2} % farther ({} points; against a parent without caves {:.2} px, {} points)",
             cases.len(),
-            found[0][0].0,
-            share(found[0][0]),
-            found[0][1].0,
-            share(found[0][1]),
-            found[1][0].0,
-            share(found[1][0]),
-            found[1][0].1,
+            lit.0,
+            share(lit),
+            lit_unmorphed.0,
+            share(lit_unmorphed),
+            all.0,
+            share(all),
+            all.1,
             control.0,
             control.1
         );
-        report.push((name, cases.len(), bound, found, share(found[1][0]), control.1));
+        report.push((name, cases.len(), bound, lit, all, share(all), control.1));
     }
-    for (name, count, bound, found, all_share, control_unmatched) in report {
+    for (name, count, bound, lit, all, all_share, control_unmatched) in report {
         assert!(count >= 8, "{name}: only {count} switches over caves found");
-        let [[lit, _], [all, _]] = found;
         assert!(lit.0 <= bound && lit.1 == 0, "{name}: lit surfaces pop {} px ({} points farther)", lit.0, lit.1);
         assert!(all.0 <= 8.0 && all_share <= 10.0, "{name}: all surfaces pop {} px, {all_share} % farther", all.0);
         assert!(
