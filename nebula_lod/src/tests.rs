@@ -362,36 +362,82 @@ proptest! {
 }
 
 /// Near the ground on an Earth, the terrain's horizon
-/// ([`LodTree::horizon_occluder`]) hides four times the leaves the
-/// planet-wide lowest bound hides (measured: 6,054 of 20,763 against 1,529); it lies below every LOD-0 surface
-/// point sampled (so it hides nothing the finest terrain would show), and
-/// an edit dug deeper lowers it.
+/// ([`LodTree::horizon_occluder`]) hides far more leaves than the
+/// planet-wide lowest bound (measured 1 km up: 8,249 of 20,463 against
+/// 950; 6,054 of 20,763 when its sphere was the deepest sea floor's, before
+/// 2026-11-27; six views 10 m to 2 km up: 36-41 % of the leaves). The sphere is inside the rock: at random LOD-0 voxels on it
+/// as far round as its horizon reaches from the eye (where a line of sight
+/// that dips under it enters it), every one is solid, caves included.
+/// Control: the lowest bound of the leaves right under the eye alone (no
+/// search out to the horizon) is not: the ground falls away within reach.
+/// An edit dug deeper lowers the planet's sphere.
 #[test]
 fn the_terrain_horizon_hides_far_leaves_near_the_ground() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(1)).unwrap();
     let settings = LodSettings { threshold_px: 1.0, screen_height_px: 400.0, ..LodSettings::default() };
     let mut tree = LodTree::new(&earth, settings).unwrap();
-    let dir = DVec3::new(0.3, 0.8, -0.5).normalize();
-    let eye = dir * (6_371_000.0 + earth.height_at(dir) + 1_000.0);
-    tree.update(&earth, &camera_at(eye)).unwrap();
-    let occluder = tree.horizon_occluder(&earth, eye).expect("the planet knows its deepest valley");
     let lowest = earth.lowest_surface_radius().unwrap();
-    assert!(occluder <= lowest && occluder > tree.min_surface_radius() + 100_000.0, "{occluder} {lowest}");
+    let layout = *earth.layout();
     let mut state = 77_u64;
-    for _ in 0..2_000 {
-        let d = DVec3::new(
-            nebula_math::unit_random(&mut state) - 0.5,
-            nebula_math::unit_random(&mut state) - 0.5,
-            nebula_math::unit_random(&mut state) - 0.5,
-        );
-        assert!(earth.surface_point(d).length() >= lowest, "below the lowest surface at {d}");
+    let mut random = || nebula_math::unit_random(&mut state);
+    let mut report = Vec::new();
+    for view in 0..6 {
+        let dir = if view == 0 {
+            DVec3::new(0.3, 0.8, -0.5).normalize()
+        } else {
+            DVec3::new(random() - 0.5, random() - 0.5, random() - 0.5).normalize()
+        };
+        let height = [1_000.0, 30.0, 300.0, 2_000.0, 100.0, 10.0][view];
+        let eye = dir * (6_371_000.0 + earth.height_at(dir).max(0.0) + height);
+        tree.update(&earth, &camera_at(eye)).unwrap();
+        let occluder = tree.horizon_occluder(&earth, eye, 0.0).expect("the planet knows its deepest valley");
+        assert!(occluder > tree.min_surface_radius() + 100_000.0 && occluder < eye.length(), "{occluder}");
+        // Solid at radius r, `angle` from the eye's direction towards a
+        // random bearing.
+        let (east, north) = {
+            let east = dir.cross(DVec3::Z).normalize();
+            (east, dir.cross(east))
+        };
+        let solid_at = |radius: f64, angle: f64, bearing: f64| {
+            let towards = east * bearing.cos() + north * bearing.sin();
+            let point = (dir * angle.cos() + towards * angle.sin()) * radius;
+            earth.voxel(layout.voxel_at(point).unwrap()).unwrap().is_solid()
+        };
+        let reach = |radius: f64| (radius / eye.length()).acos();
+        let mut open = 0;
+        for _ in 0..2_000 {
+            // Uniform over the cap's area; the voxel a metre down (a voxel
+            // is cut by the sphere).
+            let angle = reach(occluder) * random().sqrt();
+            open += usize::from(!solid_at(occluder - 1.0, angle, random() * std::f64::consts::TAU));
+        }
+        assert_eq!(open, 0, "view {view}: air under the occluder within its reach");
+        // Control: the eye's own leaf's bound alone, over the same reach.
+        let own = tree
+            .leaves()
+            .into_iter()
+            .filter_map(|c| tree.node_bounds(c))
+            .filter(|b| b.center_direction.angle_between(dir) <= b.angular_radius)
+            .map(|b| b.min_radius)
+            .fold(eye.length(), f64::min);
+        let control_open =
+            (0..2_000).filter(|_| !solid_at(own - 1.0, reach(own) * random().sqrt(), random() * 6.3)).count();
+        let leaves = tree.leaves();
+        let behind =
+            |radius: f64| leaves.iter().filter(|&&c| tree.node_bounds(c).unwrap().behind_horizon(eye, radius)).count();
+        let (tight, planet_wide) = (behind(occluder), behind(tree.min_surface_radius()));
+        report.push((view, height, eye.length() - occluder, leaves.len(), tight, planet_wide, control_open));
+        assert!(occluder >= lowest - earth.geometric_error(layout.max_lod()));
+        assert!(tight > leaves.len() / 4 && tight > 3 * planet_wide, "view {view}: {tight} vs {planet_wide}");
     }
-    let leaves = tree.leaves();
-    let behind =
-        |radius: f64| leaves.iter().filter(|&&c| tree.node_bounds(c).unwrap().behind_horizon(eye, radius)).count();
-    let (tight, planet_wide) = (behind(occluder), behind(tree.min_surface_radius()));
-    println!("{} leaves: {tight} behind the terrain's horizon, {planet_wide} behind the planet-wide one", leaves.len());
-    assert!(tight > leaves.len() / 4 && tight > 3 * planet_wide, "{tight} vs {planet_wide}");
+    for (view, height, depth, leaves, tight, planet_wide, control_open) in &report {
+        println!(
+            "view {view}, {height} m up: occluder {depth:.0} m under the eye; of {leaves} leaves {tight} behind its \
+             horizon, {planet_wide} behind the planet-wide one; control (the eye's leaf alone): {control_open} of \
+             2000 points under it open"
+        );
+    }
+    assert!(report.iter().map(|r| r.6).sum::<usize>() > 0, "the control should find air under a local bound");
 
     let mut dug = nebula_voxel::EditedSource::new(earth.clone());
     let deep = nebula_voxel::VoxelCoord { face: CubeFace::PosY, lod: 0, i: 1000, j: 1000, h: -20_000 };

@@ -311,24 +311,32 @@ impl LodTree {
         Some((along % count, count))
     }
 
-    /// The sphere whose horizon hides what lies behind it from `eye`,
-    /// for refinement: the deepest LOD-0 surface
-    /// ([`VoxelSource::lowest_surface_radius`]) lowered by δ of the
-    /// coarsest LOD this tree draws out to that sphere's horizon (coarse
-    /// voxels round the drawn surface down by up to δ). `None` where the
-    /// source knows no such depth or the eye is below it.
+    /// The sphere whose horizon hides what lies behind it from every eye
+    /// within `margin` metres of `eye`: the highest of two.
     ///
-    /// Why: the planet-wide lowest bound of the tree
-    /// ([`LodTree::min_surface_radius`]) is hundreds of kilometres deep on
-    /// an Earth (a coarse node's bound allows for its voxel and slope), so
-    /// its horizon hides next to nothing near the ground. This one is the
-    /// real horizon of the terrain. It is not a proof that the drawn
-    /// surface hides everything behind it (a coarse stand-in can dip
-    /// lower), so what it hides should be drawn coarse, not left out.
+    /// - The planet's: the deepest LOD-0 surface
+    ///   ([`VoxelSource::lowest_surface_radius`]) lowered by δ of the
+    ///   coarsest LOD this tree draws out to that sphere's horizon (coarse
+    ///   voxels round the drawn surface down by up to δ).
+    /// - The eye's own ground ([`LodTree::local_occluder`]): the lowest
+    ///   surface bound of the tree's leaves around the eye, as far round
+    ///   as that sphere's horizon reaches. Near the ground over land it is
+    ///   kilometres higher than the planet's (whose deepest sea floor is
+    ///   hundreds of kilometres of horizon further), and a narrow lens
+    ///   refines out to that horizon.
+    ///
+    /// Why not the planet-wide lowest bound of the tree
+    /// ([`LodTree::min_surface_radius`]): it is hundreds of kilometres deep
+    /// on an Earth (a coarse node's bound allows for its voxel and slope),
+    /// so its horizon hides next to nothing near the ground. The occluder
+    /// is not a proof that the drawn surface hides everything behind it (a
+    /// coarse stand-in can dip lower), so what it hides should be drawn
+    /// coarse, not left out. `None` where the source knows no such depth or
+    /// the eye is below it.
     #[must_use]
-    pub fn horizon_occluder<S: VoxelSource + ?Sized>(&self, source: &S, eye: DVec3) -> Option<f64> {
+    pub fn horizon_occluder<S: VoxelSource + ?Sized>(&self, source: &S, eye: DVec3, margin: f64) -> Option<f64> {
         let lowest = source.lowest_surface_radius()?;
-        let d = eye.length();
+        let d = eye.length() + margin;
         if d <= lowest {
             return None;
         }
@@ -339,7 +347,77 @@ impl LodTree {
         // split distance are split.
         let lod =
             (0..=self.layout.max_lod()).find(|&l| self.split_distance(l) > reach).unwrap_or(self.layout.max_lod());
-        Some((lowest - source.geometric_error(lod)).max(self.min_surface_radius))
+        let planet = (lowest - source.geometric_error(lod)).max(self.min_surface_radius);
+        Some(self.local_occluder(eye, margin).map_or(planet, |local| local.max(planet)))
+    }
+
+    /// The highest sphere under every surface the tree's leaves bound
+    /// within its own horizon seen from every eye within `margin` of
+    /// `eye`; `None` where none is found in a few passes (or the eye is
+    /// under the ground).
+    ///
+    /// Why it hides: a line of sight from such an eye that passes under the
+    /// sphere (radius r) enters it within acos(r / d) of the eye's
+    /// direction (d: the eye's farthest distance from the centre), where
+    /// every leaf's surface, at its own LOD and every finer one, cave air
+    /// included, lies above r ([`VoxelSource::surface_bounds`]): the point
+    /// where it enters is inside the drawn rock, so the line crossed the
+    /// drawn surface before. The sphere is the fixed point r = lowest bound
+    /// within acos(r / d), found by lowering r until the leaves out to its
+    /// own horizon bear it.
+    #[must_use]
+    pub fn local_occluder(&self, eye: DVec3, margin: f64) -> Option<f64> {
+        let d = eye.length();
+        if d <= 0.0 || !d.is_finite() {
+            return None;
+        }
+        let far = d + margin;
+        let direction = eye / d;
+        // How far the eye's direction moves within the margin.
+        let drift = (margin / d).min(1.0).asin();
+        let mut r = far;
+        for _ in 0..24 {
+            let reach = drift + if r < far { (r / far).acos() } else { 0.0 };
+            let lowest = self.lowest_bound_within(direction, reach, r);
+            if lowest >= r {
+                return (r < d).then_some(r);
+            }
+            // A little lower than the lowest found: the next, wider cap
+            // seldom holds lower ground by less than that.
+            r = lowest - 0.02 * (far - lowest);
+        }
+        None
+    }
+
+    /// The lowest surface bound of the leaves at most `reach` radians from
+    /// `direction`, where it is below `below` (`below` otherwise). A node
+    /// all above `below` is not walked: every surface of its patch, at its
+    /// LOD and every finer one, lies within its bounds.
+    fn lowest_bound_within(&self, direction: DVec3, reach: f64, below: f64) -> f64 {
+        let cos_near = reach.min(std::f64::consts::PI).cos();
+        let mut lowest = below;
+        let mut stack: Vec<ChunkColumn> =
+            CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
+        while let Some(column) = stack.pop() {
+            let Some(node) = self.nodes.get(&column) else { continue };
+            let bounds = &node.bounds;
+            if bounds.min_radius >= lowest {
+                continue;
+            }
+            // Within reach: its nearest point is (centre's angle minus its
+            // angular radius); the cosine test first, the angle only near
+            // the cap's rim.
+            let cos_centre = direction.dot(bounds.center_direction);
+            if cos_centre < cos_near && cos_centre.clamp(-1.0, 1.0).acos() - bounds.angular_radius > reach {
+                continue;
+            }
+            if self.drawn_is_split(&column) {
+                stack.extend(children_of(column));
+            } else {
+                lowest = bounds.min_radius;
+            }
+        }
+        lowest
     }
 
     /// The leaf chunks in view at the last [`LodTree::cull`].

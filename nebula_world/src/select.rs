@@ -265,11 +265,9 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // has thousands the eye cannot see. Coarse, not left out: where a
     // coarse stand-in in front dips below that horizon, what shows through
     // is coarse, never a hole. Hidden from every eye within the margin:
-    // the occluder for the farthest of them (it sees farthest round, so
-    // over the coarsest LODs, the lowest sphere), its horizon widened.
+    // the occluder for all of them, its horizon widened.
     let distance = eye.length();
-    let farthest = if distance > 0.0 { eye * ((distance + eye_margin) / distance) } else { eye };
-    let occluder = tree.horizon_occluder(voxels, farthest);
+    let occluder = tree.horizon_occluder(voxels, eye, eye_margin);
     let horizon = occluder.map(|r| Horizon::around(eye, eye_margin, r));
     let behind = |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
     let bounds_behind = |bounds: &NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
