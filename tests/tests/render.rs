@@ -914,7 +914,9 @@ fn settled_with_sea(
 /// Drawing the sea bed the sea hides as coarse stand-ins (`OpaqueSea`)
 /// changes no pixel: over the deep sea 4 km up (where it draws far fewer
 /// triangles), and 150 m over shallow water off a coast (a place from a fixed seed
-/// where the sea bed is 3–12 m down, so it shows through the water). And
+/// where the sea bed is 3–12 m down, so it shows through the water, and
+/// over 60 m down 20 or 40 km ahead, within the terrain's horizon: the
+/// Earth's shelves slope gently, about 100 m down 80 km out). And
 /// the check can fail: the same stand-ins with no sea drawn over them
 /// change the deep view. With one sample per pixel, and with four up to
 /// one pixel in 10,000: where the far edge of the sea bed crosses the sea's
@@ -932,7 +934,16 @@ fn the_sea_hides_only_what_changes_no_pixel() {
     let radius = settings.radius;
     let opaque = OpaqueSea { radius, hiding_depth: nebula_render::sea_hiding_depth(radius) };
     let mut rng = Rng(0x5EA);
-    let shallow = place_with_ground(&planet, &mut rng, -12.0..-3.0);
+    // Shallow water with deep water ahead in the view: sea bed the sea
+    // hides within the terrain's horizon, near sea bed that shows.
+    let deep_ahead = |dir: DVec3| {
+        let heading = dir.cross(DVec3::Z).normalize();
+        [20_000.0, 40_000.0].iter().any(|d| planet.height_at((dir + heading * (d / radius)).normalize()) < -60.0)
+    };
+    let shallow = (0..2_000)
+        .map(|_| place_with_ground(&planet, &mut rng, -12.0..-3.0))
+        .find(|&dir| deep_ahead(dir))
+        .expect("shallow water with deep water ahead");
     let deep = place_with_ground(&planet, &mut rng, -1200.0..-400.0);
     let poses = [("deep", deep, 4_200.0, 3.0), ("shallow", shallow, 150.0, 25.0)];
     for ((name, dir, altitude, pitch), multisampling) in poses.into_iter().flat_map(|p| [(p, false), (p, true)]) {
