@@ -122,7 +122,21 @@ pub struct ChunkMesher {
     /// The chunk's [`ChunkVoxels::sky_floors`]: where each padded column
     /// is open to the sky.
     sky_floors: [u8; PADDED_COLUMNS],
+    /// Per padded voxel (a bit each): dark air that
+    /// [`ChunkMesher::plug_dark_air`] filled with rock.
+    plugs: Vec<u64>,
+    /// The chunk `plugs` was made for (taken by the next meshing).
+    plugs_for: Option<ChunkKey>,
+    /// [`PLUG_MARGIN`], except where a test plugs up to the boundary to see
+    /// the seams open.
+    pub(crate) plug_margin: u32,
 }
+
+/// Voxels left open along every side of a chunk by
+/// [`ChunkMesher::plug_dark_air`]: the layers both chunks of a boundary
+/// read (one each side) stay as the source has them, so neighbours agree
+/// on the faces and vertices there whatever either plugs.
+pub(crate) const PLUG_MARGIN: u32 = 1;
 
 impl Default for ChunkMesher {
     fn default() -> Self {
@@ -152,7 +166,59 @@ impl ChunkMesher {
             stitch_coarser: [None; 4],
             stitch_parts: StitchParts::ALL,
             sky_floors: [0; PADDED_COLUMNS],
+            plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
+            plugs_for: None,
+            plug_margin: PLUG_MARGIN,
         }
+    }
+
+    /// Fills the chunk's dark air (cave air under its column's
+    /// [`ChunkVoxels::sky_floors`], one voxel or more in from every side
+    /// of the chunk) with the rock under it, and remembers it
+    /// for the next meshing of this chunk: its faces towards the open air
+    /// are then dark, as the cave behind them would be
+    /// ([`ChunkMesher`]'s `sky_light`). What a cave looks like from afar,
+    /// at a fraction of its triangles: seen from outside, a cave's inside
+    /// shows only through its mouths, as a dark hole; its walls under the
+    /// ground are what most of its triangles are. Returns how many voxels
+    /// were filled.
+    pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
+        self.plugs.fill(0);
+        self.plugs_for = Some(voxels.key());
+        let floors = voxels.sky_floors();
+        let (low, high) = (1 + self.plug_margin, PADDED_CHUNK_SIZE - 1 - self.plug_margin);
+        let slice = voxels.as_mut_slice();
+        let mut filled = 0;
+        for z in low..high {
+            for x in low..high {
+                let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(high);
+                // The rock of the nearest solid voxel below, else above.
+                let above = (0..PADDED_CHUNK_SIZE)
+                    .rev()
+                    .map(|y| slice[PaddedChunkShape::linearize([x, y, z]) as usize])
+                    .find(|voxel| voxel.is_solid());
+                let mut rock = None;
+                for y in 0..floor {
+                    let index = PaddedChunkShape::linearize([x, y, z]) as usize;
+                    let voxel = slice[index];
+                    if voxel.is_solid() {
+                        rock = Some(voxel);
+                    } else if y >= low {
+                        let Some(fill) = rock.or(above) else { break };
+                        slice[index] = fill;
+                        self.plugs[index / 64] |= 1 << (index % 64);
+                        filled += 1;
+                    }
+                }
+            }
+        }
+        filled
+    }
+
+    /// Whether padded voxel `padded` is a plug of the chunk being meshed.
+    fn is_plug(&self, padded: [u32; 3]) -> bool {
+        let index = PaddedChunkShape::linearize(padded) as usize;
+        self.plugs_for.is_some() && self.plugs[index / 64] & (1 << (index % 64)) != 0
     }
 
     /// The surface mesh of `voxels` (no constraining, no skirts), placed on
@@ -231,6 +297,9 @@ impl ChunkMesher {
         let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         let stamp = self.next_stamp();
         self.sky_floors = voxels.sky_floors();
+        if self.plugs_for.is_some_and(|key| key != voxels.key()) {
+            self.plugs_for = None;
+        }
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
         for (direction, (group, face)) in groups.iter_mut().zip(faces).enumerate() {
             let axes = FaceAxes::of(face);
@@ -251,7 +320,7 @@ impl ChunkMesher {
             });
             let is_covered = |index: usize| covered[index] == stamp;
             axes.push_boundary_strips(voxels.as_slice(), &is_covered, boundary_layers, group);
-            split_by_sky(&axes, group, voxels, &self.sky_floors);
+            split_by_sky(&axes, group, voxels, &self.sky_floors, &|padded| self.is_plug(padded));
         }
         self.push_mirror_faces(voxels, &mut groups);
         for (group, face) in groups.iter().zip(faces) {
@@ -288,6 +357,7 @@ impl ChunkMesher {
             result = self.zip_coarse_edges(voxels, layout, mesh);
         }
         mesh.surface_index_count = mesh.indices.len();
+        self.plugs_for = None;
         result
     }
 
@@ -610,27 +680,34 @@ impl ChunkMesher {
     /// How much sky lights lattice point `local` on a face looking towards
     /// `side`: 255 where one of the air voxels in front of the face around
     /// the point (up to four) is open to the sky
-    /// ([`ChunkVoxels::sky_floors`]), else 0. Between a quad's corners the
-    /// light is interpolated, so it fades from a cave mouth or an
-    /// overhang's edge (where the quads are split, `split_by_sky`) into
-    /// the dark, and open ground is never darkened. A function of the
-    /// point, the side and the voxels around it (padding included) alone,
-    /// so the chunks sharing a vertex give it the same light.
+    /// ([`ChunkVoxels::sky_floors`]) and none of the voxels behind it is a
+    /// plug ([`ChunkMesher::plug_dark_air`]: the dark cave it stands for),
+    /// else 0. Between a quad's corners the light is interpolated, so it
+    /// fades from a cave mouth or an overhang's edge (where the quads are
+    /// split, `split_by_sky`) into the dark, and open ground is never
+    /// darkened. A function of the point, the side and the voxels around
+    /// it (padding included) alone, so the chunks sharing a vertex give it
+    /// the same light (plugs keep off the layers they share).
     fn sky_light(&self, voxels: &ChunkVoxels, local: [i32; 3], side: FaceDirection) -> u8 {
         let axis = side.axis();
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
         // Padded index of the voxel layer in front of the face: voxel
         // `local[axis]` (padded `+ 1`) in front of a face looking up the
-        // axis, the one before it otherwise.
+        // axis, the one before it otherwise; the layer behind it next to it.
         let front = if side.is_positive() { local[axis] + 1 } else { local[axis] };
-        let open = [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
-            let mut padded = [0i32; 3];
-            padded[axis] = front;
-            padded[u] = local[u] + du;
-            padded[v] = local[v] + dv;
-            open_to_sky(voxels, &self.sky_floors, padded.map(|c| c as u32))
-        });
-        if open { 255 } else { 0 }
+        let back = if side.is_positive() { front - 1 } else { front + 1 };
+        let around = |layer: i32| {
+            [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().map(move |(du, dv)| {
+                let mut padded = [0i32; 3];
+                padded[axis] = layer;
+                padded[u] = local[u] + du;
+                padded[v] = local[v] + dv;
+                padded.map(|c| c as u32)
+            })
+        };
+        let open = around(front).any(|padded| open_to_sky(voxels, &self.sky_floors, padded));
+        let plugged = self.plugs_for.is_some() && around(back).any(|padded| self.is_plug(padded));
+        if open && !plugged { 255 } else { 0 }
     }
 
     /// The canonical world position of local lattice point `local`: the
@@ -698,17 +775,24 @@ fn open_to_sky(voxels: &ChunkVoxels, sky_floors: &[u8; PADDED_COLUMNS], padded: 
 }
 
 /// Splits each interior greedy quad of `group` whose faces are not all
-/// open to the sky, or all covered, into runs along `u` that are: so that
+/// open to the sky (and no plug's), or all covered, into runs along `u`
+/// that are: so that
 /// the light interpolated across a quad ([`ChunkMesher`]'s `sky_light`)
 /// fades only over covered ground, from its edge. Quads touching a
 /// boundary plane stay as they are (their vertices there must be the
 /// canonical set, which knows nothing of light). Open ground and caves
 /// away from their mouths are one kind throughout and not split.
-fn split_by_sky(axes: &FaceAxes, group: &mut Vec<UnorientedQuad>, voxels: &ChunkVoxels, floors: &[u8; PADDED_COLUMNS]) {
+fn split_by_sky(
+    axes: &FaceAxes,
+    group: &mut Vec<UnorientedQuad>,
+    voxels: &ChunkVoxels,
+    floors: &[u8; PADDED_COLUMNS],
+    is_plug: &dyn Fn([u32; 3]) -> bool,
+) {
     let front = |padded: [u32; 3]| {
         let mut front = padded;
         front[axes.n] = if axes.positive { front[axes.n] + 1 } else { front[axes.n] - 1 };
-        open_to_sky(voxels, floors, front)
+        open_to_sky(voxels, floors, front) && !is_plug(padded)
     };
     let mut runs = Vec::new();
     group.retain(|quad| {

@@ -33,28 +33,61 @@ pub struct MeshOptions {
     /// Drawn without geomorphing: the two sides of a seam morph towards
     /// different LODs.
     pub stitch: bool,
+    /// From this LOD up, cave air the sky does not light is meshed as the
+    /// rock around it, its faces towards the open air dark
+    /// ([`ChunkMesher::plug_dark_air`]): a streamed view sees caves from
+    /// afar only through their mouths, and their walls under the ground
+    /// were 43 % of a narrow lens's triangles over land. `None`: every
+    /// cave meshed whole.
+    pub plug_dark_air_from_lod: Option<u8>,
 }
 
 impl Default for MeshOptions {
     fn default() -> Self {
-        Self { constrain_edges: true, skirts: true, draw_time_skirts: false, stitch: false }
+        Self {
+            constrain_edges: true,
+            skirts: true,
+            draw_time_skirts: false,
+            stitch: false,
+            plug_dark_air_from_lod: None,
+        }
     }
 }
 
 impl MeshOptions {
     /// No constraining, no skirts: the bare surface, for measuring what the
     /// seam passes fix.
-    pub const NO_SEAMS: Self = Self { constrain_edges: false, skirts: false, draw_time_skirts: false, stitch: false };
+    pub const NO_SEAMS: Self = Self {
+        constrain_edges: false,
+        skirts: false,
+        draw_time_skirts: false,
+        stitch: false,
+        plug_dark_air_from_lod: None,
+    };
 
     /// Context-free meshes for streaming: no constraining, a skirt on
-    /// every side whose depth the renderer chooses per frame.
-    pub const STREAMING: Self = Self { constrain_edges: false, skirts: true, draw_time_skirts: true, stitch: false };
+    /// every side whose depth the renderer chooses per frame; dark cave
+    /// air plugged from LOD 1 (LOD 1 begins hundreds of metres from the
+    /// eye).
+    pub const STREAMING: Self = Self {
+        constrain_edges: false,
+        skirts: true,
+        draw_time_skirts: true,
+        stitch: false,
+        plug_dark_air_from_lod: Some(1),
+    };
 
     /// Seams closed by stitches in the boundary planes, no skirts: the
     /// edges towards a coarser neighbour constrained onto its lattice, the
     /// faces between the two LODs' voxels in the plane, and the coarse
     /// edges zipped to the fine vertices on them.
-    pub const STITCHED: Self = Self { constrain_edges: true, skirts: false, draw_time_skirts: false, stitch: true };
+    pub const STITCHED: Self = Self {
+        constrain_edges: true,
+        skirts: false,
+        draw_time_skirts: false,
+        stitch: true,
+        plug_dark_air_from_lod: None,
+    };
 }
 
 /// Reusable memory for meshing chunk after chunk on one thread: the padded
@@ -103,6 +136,9 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     check_context(key, context)?;
     let voxels = buffer.voxels.get_or_insert_with(|| ChunkVoxels::new(key));
     source.fill_chunk(key, voxels)?;
+    if options.plug_dark_air_from_lod.is_some_and(|lod| key.lod >= lod) {
+        buffer.mesher.plug_dark_air(voxels);
+    }
     let layout = source.layout();
     let stitched: Vec<StitchedSide> = if options.stitch {
         FaceDirection::HORIZONTAL
