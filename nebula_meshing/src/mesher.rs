@@ -678,16 +678,16 @@ impl ChunkMesher {
     }
 
     /// How much sky lights lattice point `local` on a face looking towards
-    /// `side`: 255 where one of the air voxels in front of the face around
-    /// the point (up to four) is open to the sky
-    /// ([`ChunkVoxels::sky_floors`]) and none of the voxels behind it is a
-    /// plug ([`ChunkMesher::plug_dark_air`]: the dark cave it stands for),
-    /// else 0. Between a quad's corners the light is interpolated, so it
-    /// fades from a cave mouth or an overhang's edge (where the quads are
-    /// split, `split_by_sky`) into the dark, and open ground is never
-    /// darkened. A function of the point, the side and the voxels around
-    /// it (padding included) alone, so the chunks sharing a vertex give it
-    /// the same light (plugs keep off the layers they share).
+    /// `side`: 255 where, in one of the (up to four) voxel cells around the
+    /// point, the air in front of the face is open to the sky
+    /// ([`ChunkVoxels::sky_floors`]) and the voxel behind it is not a plug
+    /// ([`ChunkMesher::plug_dark_air`]: the dark cave it stands for), else
+    /// 0. Between a quad's corners the light is interpolated, so it fades
+    /// from a cave mouth or an overhang's edge (where the quads are split,
+    /// `split_by_sky`) into the dark, and open ground is never darkened. A
+    /// function of the point, the side and the voxels around it (padding
+    /// included) alone, so the chunks sharing a vertex give it the same
+    /// light (plugs keep off the layers they share).
     fn sky_light(&self, voxels: &ChunkVoxels, local: [i32; 3], side: FaceDirection) -> u8 {
         let axis = side.axis();
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
@@ -696,18 +696,17 @@ impl ChunkMesher {
         // axis, the one before it otherwise; the layer behind it next to it.
         let front = if side.is_positive() { local[axis] + 1 } else { local[axis] };
         let back = if side.is_positive() { front - 1 } else { front + 1 };
-        let around = |layer: i32| {
-            [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().map(move |(du, dv)| {
+        let lit = [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
+            let at = |layer: i32| {
                 let mut padded = [0i32; 3];
                 padded[axis] = layer;
                 padded[u] = local[u] + du;
                 padded[v] = local[v] + dv;
                 padded.map(|c| c as u32)
-            })
-        };
-        let open = around(front).any(|padded| open_to_sky(voxels, &self.sky_floors, padded));
-        let plugged = self.plugs_for.is_some() && around(back).any(|padded| self.is_plug(padded));
-        if open && !plugged { 255 } else { 0 }
+            };
+            open_to_sky(voxels, &self.sky_floors, at(front)) && !self.is_plug(at(back))
+        });
+        if lit { 255 } else { 0 }
     }
 
     /// The canonical world position of local lattice point `local`: the
