@@ -321,9 +321,9 @@ impl LodTree {
     /// - The eye's own ground ([`LodTree::local_occluder`]): the lowest
     ///   surface bound of the tree's leaves around the eye, as far round
     ///   as that sphere's horizon reaches. Near the ground over land it is
-    ///   kilometres higher than the planet's (whose deepest sea floor is
-    ///   hundreds of kilometres of horizon further), and a narrow lens
-    ///   refines out to that horizon.
+    ///   kilometres higher than the planet's, whose deepest sea floor puts
+    ///   the horizon hundreds of kilometres away, where a narrow lens still
+    ///   refines.
     ///
     /// Why not the planet-wide lowest bound of the tree
     /// ([`LodTree::min_surface_radius`]): it is hundreds of kilometres deep

@@ -10,6 +10,8 @@
 //!   keep them up to date);
 //! - `surface`: greedy quads → T-junction-free triangles on the sphere,
 //!   sky light included (`sky_floors`: its fixed part);
+//! - `copy_and_plug_dark_air` against `copy`: what plugging a chunk's dark
+//!   cave air costs (`ChunkMesher::plug_dark_air`, streaming from LOD 1);
 //! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
 //!   and a skirt there) from the already generated voxels.
 //!
@@ -177,6 +179,18 @@ fn meshing(c: &mut Criterion) {
         // four voxel reads per vertex and one per face of a quad).
         group.bench_function(BenchmarkId::new(format!("{name}/sky_floors"), "columns=1156"), |b| {
             b.iter(|| voxels.sky_floors());
+        });
+        // Plugging dark cave air (streaming does it from LOD 1 up), on a
+        // copy of the chunk each time: against `copy` alone.
+        let mut copy = voxels.clone();
+        group.bench_function(BenchmarkId::new(format!("{name}/copy"), "voxels=39304"), |b| {
+            b.iter(|| copy.as_mut_slice().copy_from_slice(voxels.as_slice()));
+        });
+        group.bench_function(BenchmarkId::new(format!("{name}/copy_and_plug_dark_air"), "voxels=39304"), |b| {
+            b.iter(|| {
+                copy.as_mut_slice().copy_from_slice(voxels.as_slice());
+                mesher.plug_dark_air(&mut copy)
+            });
         });
         let tris = full.triangle_count();
         group.bench_function(BenchmarkId::new(format!("{name}/pipeline"), format!("tris={tris}")), |b| {

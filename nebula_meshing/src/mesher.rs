@@ -192,23 +192,28 @@ impl ChunkMesher {
         for z in low..high {
             for x in low..high {
                 let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(high);
-                // The rock of the nearest solid voxel below, else above.
-                let above = (0..PADDED_CHUNK_SIZE)
-                    .rev()
-                    .map(|y| slice[PaddedChunkShape::linearize([x, y, z]) as usize])
-                    .find(|voxel| voxel.is_solid());
+                // The rock of the nearest solid voxel below, else of the
+                // nearest above (the roof over dark air at the chunk's foot).
                 let mut rock = None;
                 for y in 0..floor {
                     let index = PaddedChunkShape::linearize([x, y, z]) as usize;
                     let voxel = slice[index];
                     if voxel.is_solid() {
                         rock = Some(voxel);
-                    } else if y >= low {
-                        let Some(fill) = rock.or(above) else { break };
-                        slice[index] = fill;
-                        self.plugs[index / 64] |= 1 << (index % 64);
-                        filled += 1;
+                        continue;
                     }
+                    if y < low {
+                        continue;
+                    }
+                    if rock.is_none() {
+                        rock = (y..PADDED_CHUNK_SIZE)
+                            .map(|above| slice[PaddedChunkShape::linearize([x, above, z]) as usize])
+                            .find(|voxel| voxel.is_solid());
+                    }
+                    let Some(fill) = rock else { break };
+                    slice[index] = fill;
+                    self.plugs[index / 64] |= 1 << (index % 64);
+                    filled += 1;
                 }
             }
         }
