@@ -651,3 +651,99 @@ proptest! {
         prop_assert_eq!(Horizon::new(eye, occluder).hides(&bounds), hidden);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 16, ..ProptestConfig::default() })]
+
+    /// Anywhere over the small planet (caves on), with or without a shaft
+    /// 5–200 voxels deep dug beside the eye: the terrain's
+    /// horizon sphere ([`LodTree::horizon_occluder`]) lies inside the rock
+    /// out to its reach, the dug air included (edits widen the bounds).
+    #[test]
+    fn the_horizon_sphere_is_inside_the_rock_out_to_its_reach(
+        dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0,
+        height in 2.0f64..400.0,
+        shaft in proptest::option::of(5i32..200),
+        seed in any::<u64>(),
+    ) {
+        let dir = DVec3::new(dx, dy, dz);
+        prop_assume!(dir.length() > 0.1);
+        let dir = dir.normalize();
+        let base = planet().clone();
+        let layout = *base.layout();
+        let radius = layout.sphere().radius();
+        let ground = base.height_at(dir).max(0.0);
+        let mut source = nebula_voxel::EditedSource::new(base);
+        if let Some(depth) = shaft {
+            // A shaft 3 m east of the eye's column, from the ground down.
+            let east = dir.cross(if dir.z.abs() < 0.9 { DVec3::Z } else { DVec3::X }).normalize();
+            let top = layout.voxel_at((dir + east * (3.0 / radius)).normalize() * (radius + ground)).unwrap();
+            for down in 0..depth {
+                source.set_voxel(nebula_voxel::VoxelCoord { h: top.h - down, ..top }, nebula_voxel::Voxel::AIR).unwrap();
+            }
+        }
+        let eye = dir * (radius + ground + height);
+        let settings = LodSettings { threshold_px: 1.0, screen_height_px: 400.0, ..LodSettings::default() };
+        let mut tree = LodTree::new(&source, settings).unwrap();
+        tree.update(&source, &camera_at(eye)).unwrap();
+        let occluder = tree.horizon_occluder(&source, eye, 0.0).unwrap();
+        prop_assert!(occluder < eye.length());
+        let reach = (occluder / eye.length()).acos();
+        let mut state = seed;
+        let (east, north) = {
+            let east = dir.cross(if dir.z.abs() < 0.9 { DVec3::Z } else { DVec3::X }).normalize();
+            (east, dir.cross(east))
+        };
+        for _ in 0..400 {
+            let angle = reach * nebula_math::unit_random(&mut state).sqrt();
+            let bearing = nebula_math::unit_random(&mut state) * std::f64::consts::TAU;
+            let towards = east * bearing.cos() + north * bearing.sin();
+            let point = (dir * angle.cos() + towards * angle.sin()) * (occluder - 0.5 * layout.sphere().layer_height());
+            let at = layout.voxel_at(point).unwrap();
+            prop_assert!(source.voxel(at).unwrap().is_solid(), "air at {point} under the occluder {occluder}");
+        }
+    }
+}
+
+/// The control of the property above: a shaft dug 160 voxels down at
+/// the eye reaches under the sphere of the tree made before the dig (its
+/// air is under that horizon: a check over the shaft would fail), and the
+/// tree made with the dig lowers its sphere below the shaft's bottom.
+#[test]
+fn a_shaft_dug_under_the_horizon_sphere_lowers_it() {
+    let base = planet().clone();
+    let layout = *base.layout();
+    let radius = layout.sphere().radius();
+    let settings = LodSettings { threshold_px: 1.0, screen_height_px: 400.0, ..LodSettings::default() };
+    let mut checked = 0;
+    for k in 0..8 {
+        let dir = DVec3::new(0.3 + 0.1 * f64::from(k), -0.5, 0.7).normalize();
+        let ground = base.height_at(dir);
+        if ground < 1.0 {
+            continue;
+        }
+        let eye = dir * (radius + ground + 20.0);
+        let mut before = LodTree::new(&base, settings).unwrap();
+        before.update(&base, &camera_at(eye)).unwrap();
+        let stale = before.horizon_occluder(&base, eye, 0.0).unwrap();
+        let top = layout.voxel_at(dir * (radius + ground - 0.5 * layout.sphere().layer_height())).unwrap();
+        let mut dug = nebula_voxel::EditedSource::new(base.clone());
+        for down in 0..160 {
+            dug.set_voxel(nebula_voxel::VoxelCoord { h: top.h - down, ..top }, nebula_voxel::Voxel::AIR).unwrap();
+        }
+        let bottom = layout.sphere().layer_radius(f64::from(top.h - 159));
+        let mut after = LodTree::new(&dug, settings).unwrap();
+        after.update(&dug, &camera_at(eye)).unwrap();
+        let lowered = after.horizon_occluder(&dug, eye, 0.0).unwrap();
+        println!(
+            "view {k}: sphere {:.1} m under the eye before the dig, {:.1} m after; the shaft's bottom {:.1} m",
+            eye.length() - stale,
+            eye.length() - lowered,
+            eye.length() - bottom
+        );
+        assert!(bottom < stale, "view {k}: the shaft does not reach under the stale sphere");
+        assert!(lowered <= bottom, "view {k}: the sphere {lowered} stays over the shaft's bottom {bottom}");
+        checked += 1;
+    }
+    assert!(checked >= 4, "only {checked} views over land");
+}
