@@ -271,6 +271,15 @@ impl<H: MeshHandle> CachedColumn<H> {
         }
     }
 
+    /// The radius of the top of its highest layer held: every face of the
+    /// column's meshes (morphed too: a vertex morphs towards a lattice
+    /// point of its own chunk) lies under it. `None` without meshes.
+    fn top_radius(&self, layout: &nebula_voxel::ChunkLayout) -> Option<f64> {
+        let top = self.chunks.iter().map(|(layer, _)| layer).max()?;
+        let layers = (i64::from(top) + 1) * i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(self.column.lod);
+        Some(layout.sphere().layer_radius(layers as f64))
+    }
+
     /// Every layer meshed, or awaited after an edit that added it to a
     /// column on screen (`stale`): the column's other meshes stand for it
     /// until it comes, as an edited chunk's old mesh does.
@@ -1481,8 +1490,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
                 chunk_draw.hidden_sides = match cached.or_else(|| cache.columns.get(column)) {
-                    Some(cached) => cached.sides.back_sides(eye),
-                    None => ColumnSides::of(voxels.layout(), *column).back_sides(eye),
+                    Some(cached) => {
+                        // Under its highest layer's top and its node's
+                        // surface bound (voxel tops at its LOD and the
+                        // parent's its vertices morph to lie under both).
+                        let surface = self.tree.node_bounds(*column).map_or(f64::INFINITY, |b| b.max_radius);
+                        let top = cached.top_radius(voxels.layout()).map(|top| top.min(surface));
+                        cached.sides.back_sides(eye, top)
+                    }
+                    None => ColumnSides::of(voxels.layout(), *column).back_sides(eye, None),
                 };
             }
         }
@@ -2369,29 +2385,51 @@ pub(crate) fn columns_across(layout: &nebula_voxel::ChunkLayout, column: ChunkCo
 pub(crate) struct ColumnSides {
     i: [nebula_math::DVec3; 2],
     j: [nebula_math::DVec3; 2],
+    /// The unit direction through the middle of the column's patch, and
+    /// the largest angle from it to a point of the patch.
+    cone: (nebula_math::DVec3, f64),
     pub(crate) across: [Option<ChunkColumn>; 4],
 }
 
 impl ColumnSides {
-    fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> Self {
+    pub(crate) fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> Self {
         let sphere = layout.sphere();
         let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
         let planes = |along_u: bool, first: i64| {
             [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
         };
+        let (i0, j0) = (i64::from(column.x) * size, i64::from(column.y) * size);
+        let direction = |a: i64, b: i64| sphere.direction(column.face, (i0 + a) as f64, (j0 + b) as f64);
+        let centre = direction(size / 2, size / 2);
+        // The patch's corners are its farthest points from the middle (the
+        // cube's lattice lines are great circles).
+        let radius = [(0, 0), (size, 0), (0, size), (size, size)]
+            .map(|(a, b)| centre.angle_between(direction(a, b)))
+            .into_iter()
+            .fold(0.0, f64::max);
         let across = columns_across(layout, column);
-        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size), across }
+        Self { i: planes(true, i0), j: planes(false, j0), cone: (centre, radius), across }
     }
 
-    /// The horizontal sides whose wall faces all look away from `eye` (bit
-    /// `FaceDirection as usize`). A wall looking towards +i lies in the
-    /// plane through the planet centre of its lattice line `i = c` and
-    /// faces the eye only when the eye is on that plane's +i side; the
-    /// column's walls lie in the planes from its first to its last line, a
-    /// pencil about one axis, so the eye is behind all of them when it is
-    /// behind the two outermost (by more than a millimetre, so rounding
-    /// never hides a wall seen edge-on).
-    fn back_sides(&self, eye: nebula_math::DVec3) -> u8 {
+    /// The sides whose faces all look away from `eye` (bit `FaceDirection
+    /// as usize`), the radial faces looking down among them where the
+    /// column's surface lies under `top` (metres from the centre) when
+    /// known.
+    ///
+    /// A wall looking towards +i lies in the plane through the planet
+    /// centre of its lattice line `i = c` and faces the eye only when the
+    /// eye is on that plane's +i side; the column's walls lie in the planes
+    /// from its first to its last line, a pencil about one axis, so the eye
+    /// is behind all of them when it is behind the two outermost (by more
+    /// than a millimetre, so rounding never hides a wall seen edge-on).
+    ///
+    /// A face looking down (a ceiling, an overhang's underside) at a
+    /// point v with normal −n (n within the patch's cone: its corners are
+    /// on one radial layer) faces the eye only when eye·n < v·n ≤ top: an
+    /// eye above `top` in every direction of the cone sees none. (Faces
+    /// looking up are never left out: stitched seams' zero-area zips lie in
+    /// their range.)
+    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, top: Option<f64>) -> u8 {
         const MARGIN_M: f64 = 1e-3;
         let mut hidden = 0;
         for (planes, positive, negative) in
@@ -2403,6 +2441,13 @@ impl ColumnSides {
             }
             if sides.iter().all(|&d| d > MARGIN_M) {
                 hidden |= 1 << negative as u8;
+            }
+        }
+        if let Some(top) = top {
+            let (centre, radius) = self.cone;
+            let farthest = eye.angle_between(centre) + radius;
+            if farthest < std::f64::consts::FRAC_PI_2 && eye.length() * farthest.cos() > top + MARGIN_M {
+                hidden |= 1 << FaceDirection::NegY as u8;
             }
         }
         hidden

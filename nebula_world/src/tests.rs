@@ -1626,3 +1626,88 @@ mod streaming {
         }
     }
 }
+
+/// Faces looking down (ceilings, overhangs' undersides) are left out only
+/// where the eye is behind every one of them (`ColumnSides::back_sides`):
+/// over random Earth columns with such faces (LODs 0–2, caves on) and
+/// random eyes from under the ground to 2 km up, each column whose
+/// faces looking down are hidden has every such triangle facing away from
+/// the eye. Control: with the column's top taken 40 m too low, some hidden
+/// triangle faces the eye.
+mod back_sides {
+    use nebula_meshing::{ChunkLodContext, ChunkMeshBuffer, FaceDirection, MeshOptions, mesh_chunk};
+    use nebula_voxel::{ChunkColumn, DVec3, PlanetSettings, ProceduralPlanet, VoxelSource};
+
+    use super::unit;
+    use crate::stream::ColumnSides;
+
+    #[test]
+    fn faces_looking_down_are_hidden_only_behind_the_eye() {
+        let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).expect("earth");
+        let layout = *earth.layout();
+        let radius = layout.sphere().radius();
+        let mut state = 0xd0_u64;
+        let mut buffer = ChunkMeshBuffer::new();
+        let (mut columns, mut hidden, mut shown, mut wrong, mut control_wrong) = (0, 0, 0, 0, 0);
+        for _ in 0..4_000 {
+            if columns >= 12 {
+                break;
+            }
+            let direction = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
+            let direction = direction.normalize();
+            let lod = (unit(&mut state) * 3.0) as u8;
+            let mut at = layout.voxel_at(direction * (radius + earth.height_at(direction))).expect("on the planet");
+            while at.lod < lod {
+                at = at.parent().expect("a parent");
+            }
+            let column: ChunkColumn = layout.chunk_of(at).column();
+            let layers = earth.surface_chunk_layers(column).expect("layers");
+            let top_layer = *layers.end();
+            // Triangles looking down: three world corners each.
+            let mut down: Vec<[DVec3; 3]> = Vec::new();
+            for layer in layers {
+                let key = column.chunk(layer);
+                let mesh = mesh_chunk(&earth, key, &ChunkLodContext::uniform(lod), MeshOptions::STREAMING, &mut buffer)
+                    .expect("meshes");
+                let range = mesh.surface_side_ranges()[FaceDirection::NegY as usize].clone();
+                for triangle in mesh.indices()[range].chunks_exact(3) {
+                    down.push([0, 1, 2].map(|k| mesh.world_position(triangle[k] as usize).expect("vertex")));
+                }
+            }
+            if down.is_empty() {
+                continue;
+            }
+            columns += 1;
+            let layer_top = (i64::from(top_layer) + 1) * 32 * layout.voxel_span(lod);
+            let top = layout
+                .sphere()
+                .layer_radius(layer_top as f64)
+                .min(earth.surface_bounds(column).expect("bounds").max_radius);
+            let sides = ColumnSides::of(&layout, column);
+            let faces_eye = |eye: DVec3| down.iter().any(|[a, b, c]| (eye - *a).dot((*b - *a).cross(*c - *a)) > 0.0);
+            let ground = radius + earth.height_at(direction);
+            for _ in 0..40 {
+                let along = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
+                let around = (direction + along * (3_000.0 / radius)).normalize();
+                let eye = around * (ground + (unit(&mut state) * 2_050.0 - 50.0));
+                let is_hidden = |top: f64| sides.back_sides(eye, Some(top)) & (1 << FaceDirection::NegY as u8) != 0;
+                if is_hidden(top) {
+                    hidden += 1;
+                    wrong += usize::from(faces_eye(eye));
+                } else {
+                    shown += 1;
+                }
+                if is_hidden(top - 40.0) && faces_eye(eye) {
+                    control_wrong += 1;
+                }
+            }
+        }
+        println!(
+            "{columns} columns with faces looking down: {hidden} eyes hide them, {shown} do not; {wrong} hidden \
+             wrongly; with the top 40 m too low {control_wrong}"
+        );
+        assert!(columns >= 12 && hidden > 0 && shown > 0, "{columns} columns, {hidden} hidden, {shown} shown");
+        assert_eq!(wrong, 0);
+        assert!(control_wrong > 0, "the check should catch a top taken too low");
+    }
+}
