@@ -76,7 +76,7 @@ use std::time::Instant;
 // thread's time in a streaming view (keys are not attacker controlled).
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, parent};
+use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, NodeBounds, parent};
 use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
@@ -1491,12 +1491,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
                 chunk_draw.hidden_sides = match cached.or_else(|| cache.columns.get(column)) {
                     Some(cached) => {
-                        // Under its highest layer's top and its node's
-                        // surface bound (voxel tops at its LOD and the
-                        // parent's its vertices morph to lie under both).
-                        let surface = self.tree.node_bounds(*column).map_or(f64::INFINITY, |b| b.max_radius);
-                        let top = cached.top_radius(voxels.layout()).map(|top| top.min(surface));
-                        cached.sides.back_sides(eye, top)
+                        // Its faces lie under its highest layer's top and
+                        // its node's surface bound (voxel tops at its LOD
+                        // and at the parent's its vertices morph to).
+                        let radial = self.tree.node_bounds(*column).zip(cached.top_radius(voxels.layout()));
+                        cached.sides.back_sides(eye, radial.map(|(bounds, top)| (bounds, top.min(bounds.max_radius))))
                     }
                     None => ColumnSides::of(voxels.layout(), *column).back_sides(eye, None),
                 };
@@ -2385,9 +2384,6 @@ pub(crate) fn columns_across(layout: &nebula_voxel::ChunkLayout, column: ChunkCo
 pub(crate) struct ColumnSides {
     i: [nebula_math::DVec3; 2],
     j: [nebula_math::DVec3; 2],
-    /// The unit direction through the middle of the column's patch, and
-    /// the largest angle from it to a point of the patch.
-    cone: (nebula_math::DVec3, f64),
     pub(crate) across: [Option<ChunkColumn>; 4],
 }
 
@@ -2398,23 +2394,13 @@ impl ColumnSides {
         let planes = |along_u: bool, first: i64| {
             [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
         };
-        let (i0, j0) = (i64::from(column.x) * size, i64::from(column.y) * size);
-        let direction = |a: i64, b: i64| sphere.direction(column.face, (i0 + a) as f64, (j0 + b) as f64);
-        let centre = direction(size / 2, size / 2);
-        // The patch's corners are its farthest points from the middle (the
-        // cube's lattice lines are great circles).
-        let radius = [(0, 0), (size, 0), (0, size), (size, size)]
-            .map(|(a, b)| centre.angle_between(direction(a, b)))
-            .into_iter()
-            .fold(0.0, f64::max);
         let across = columns_across(layout, column);
-        Self { i: planes(true, i0), j: planes(false, j0), cone: (centre, radius), across }
+        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size), across }
     }
 
     /// The sides whose faces all look away from `eye` (bit `FaceDirection
-    /// as usize`), the radial faces looking down among them where the
-    /// column's surface lies under `top` (metres from the centre) when
-    /// known.
+    /// as usize`), the radial faces looking down among them where `radial`
+    /// gives the column's node bounds and a radius its faces lie under.
     ///
     /// A wall looking towards +i lies in the plane through the planet
     /// centre of its lattice line `i = c` and faces the eye only when the
@@ -2424,12 +2410,12 @@ impl ColumnSides {
     /// than a millimetre, so rounding never hides a wall seen edge-on).
     ///
     /// A face looking down (a ceiling, an overhang's underside) at a
-    /// point v with normal −n (n within the patch's cone: its corners are
-    /// on one radial layer) faces the eye only when eye·n < v·n ≤ top: an
-    /// eye above `top` in every direction of the cone sees none. (Faces
-    /// looking up are never left out: stitched seams' zero-area zips lie in
-    /// their range.)
-    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, top: Option<f64>) -> u8 {
+    /// point v with normal −n (n within the patch's directions: its
+    /// corners are on one radial layer) faces the eye only when eye·n <
+    /// v·n ≤ top: an eye above `top` in every direction of the patch sees
+    /// none. (Faces looking up are never left out: stitched seams'
+    /// zero-area zips lie in their range.)
+    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, radial: Option<(&NodeBounds, f64)>) -> u8 {
         const MARGIN_M: f64 = 1e-3;
         let mut hidden = 0;
         for (planes, positive, negative) in
@@ -2443,9 +2429,8 @@ impl ColumnSides {
                 hidden |= 1 << negative as u8;
             }
         }
-        if let Some(top) = top {
-            let (centre, radius) = self.cone;
-            let farthest = eye.angle_between(centre) + radius;
+        if let Some((bounds, top)) = radial {
+            let farthest = eye.angle_between(bounds.center_direction) + bounds.angular_radius;
             if farthest < std::f64::consts::FRAC_PI_2 && eye.length() * farthest.cos() > top + MARGIN_M {
                 hidden |= 1 << FaceDirection::NegY as u8;
             }

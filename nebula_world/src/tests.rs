@@ -1635,6 +1635,7 @@ mod streaming {
 /// the eye. Control: with the column's top taken 40 m too low, some hidden
 /// triangle faces the eye.
 mod back_sides {
+    use nebula_lod::NodeBounds;
     use nebula_meshing::{ChunkLodContext, ChunkMeshBuffer, FaceDirection, MeshOptions, mesh_chunk};
     use nebula_voxel::{ChunkColumn, DVec3, PlanetSettings, ProceduralPlanet, VoxelSource};
 
@@ -1684,13 +1685,15 @@ mod back_sides {
                 .layer_radius(layer_top as f64)
                 .min(earth.surface_bounds(column).expect("bounds").max_radius);
             let sides = ColumnSides::of(&layout, column);
+            let bounds = NodeBounds::new(&layout, column, &earth.surface_bounds(column).expect("bounds"));
             let faces_eye = |eye: DVec3| down.iter().any(|[a, b, c]| (eye - *a).dot((*b - *a).cross(*c - *a)) > 0.0);
             let ground = radius + earth.height_at(direction);
             for _ in 0..40 {
                 let along = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
                 let around = (direction + along * (3_000.0 / radius)).normalize();
                 let eye = around * (ground + (unit(&mut state) * 2_050.0 - 50.0));
-                let is_hidden = |top: f64| sides.back_sides(eye, Some(top)) & (1 << FaceDirection::NegY as u8) != 0;
+                let is_hidden =
+                    |top: f64| sides.back_sides(eye, Some((&bounds, top))) & (1 << FaceDirection::NegY as u8) != 0;
                 if is_hidden(top) {
                     hidden += 1;
                     wrong += usize::from(faces_eye(eye));
