@@ -185,7 +185,9 @@ impl ChunkMesher {
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
         self.plugs_for = Some(voxels.key());
-        let floors = voxels.sky_floors();
+        // Plugs lie under the floors, so the meshing reuses them.
+        self.sky_floors = voxels.sky_floors();
+        let floors = self.sky_floors;
         let (low, high) = (1 + self.plug_margin, PADDED_CHUNK_SIZE - 1 - self.plug_margin);
         let slice = voxels.as_mut_slice();
         let mut filled = 0;
@@ -301,9 +303,9 @@ impl ChunkMesher {
         binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [last; 3], faces, &mut self.greedy);
         let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         let stamp = self.next_stamp();
-        self.sky_floors = voxels.sky_floors();
-        if self.plugs_for.is_some_and(|key| key != voxels.key()) {
+        if self.plugs_for != Some(voxels.key()) {
             self.plugs_for = None;
+            self.sky_floors = voxels.sky_floors();
         }
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
         for (direction, (group, face)) in groups.iter_mut().zip(faces).enumerate() {

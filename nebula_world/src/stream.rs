@@ -267,7 +267,7 @@ impl<H: MeshHandle> CachedColumn<H> {
             chunks: LayerMeshes::default(),
             held: Held::default(),
             last_used: frame,
-            sides: ColumnSides::of(voxels.layout(), column),
+            sides: ColumnSides::of(voxels.layout(), column, tree.node_bounds(column)),
         }
     }
 
@@ -275,7 +275,7 @@ impl<H: MeshHandle> CachedColumn<H> {
     /// column's meshes (morphed too: a vertex morphs towards a lattice
     /// point of its own chunk) lies under it. `None` without meshes.
     fn top_radius(&self, layout: &nebula_voxel::ChunkLayout) -> Option<f64> {
-        let top = self.chunks.iter().map(|(layer, _)| layer).max()?;
+        let top = self.chunks.top()?;
         let layers = (i64::from(top) + 1) * i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(self.column.lod);
         Some(layout.sphere().layer_radius(layers as f64))
     }
@@ -301,12 +301,14 @@ impl<H: MeshHandle> CachedColumn<H> {
 
 /// A column's meshes by radial layer: a handful at most, so a short list
 /// sorted by layer (a hash map per column cost a pointer chase and a hash
-/// on every readiness check of every drawn column, every frame).
-pub(crate) struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>);
+/// on every readiness check of every drawn column, every frame), and the
+/// outermost layer held, kept beside it (read for every drawn column every
+/// frame, [`ColumnSides::back_sides`]: the list is behind a pointer).
+pub(crate) struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>, Option<i32>);
 
 impl<H> Default for LayerMeshes<H> {
     fn default() -> Self {
-        Self(Vec::new())
+        Self(Vec::new(), None)
     }
 }
 
@@ -321,6 +323,7 @@ impl<H> LayerMeshes<H> {
             Ok(at) => Some(std::mem::replace(&mut self.0[at].1, chunk)),
             Err(at) => {
                 self.0.insert(at, (layer, chunk));
+                self.1 = self.0.last().map(|(l, _)| *l);
                 None
             }
         }
@@ -328,11 +331,19 @@ impl<H> LayerMeshes<H> {
 
     fn remove(&mut self, layer: i32) -> Option<LoadedChunk<H>> {
         let at = self.0.iter().position(|(l, _)| *l == layer)?;
-        Some(self.0.remove(at).1)
+        let (_, chunk) = self.0.remove(at);
+        self.1 = self.0.last().map(|(l, _)| *l);
+        Some(chunk)
     }
 
     fn retain(&mut self, mut keep: impl FnMut(i32, &LoadedChunk<H>) -> bool) {
         self.0.retain(|(layer, chunk)| keep(*layer, chunk));
+        self.1 = self.0.last().map(|(l, _)| *l);
+    }
+
+    /// The outermost layer held.
+    fn top(&self) -> Option<i32> {
+        self.1
     }
 
     /// The meshes, innermost layer first.
@@ -1490,14 +1501,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
                 chunk_draw.hidden_sides = match cached.or_else(|| cache.columns.get(column)) {
-                    Some(cached) => {
-                        // Its faces lie under its highest layer's top and
-                        // its node's surface bound (voxel tops at its LOD
-                        // and at the parent's its vertices morph to).
-                        let radial = self.tree.node_bounds(*column).zip(cached.top_radius(voxels.layout()));
-                        cached.sides.back_sides(eye, radial.map(|(bounds, top)| (bounds, top.min(bounds.max_radius))))
-                    }
-                    None => ColumnSides::of(voxels.layout(), *column).back_sides(eye, None),
+                    Some(cached) => cached.sides.back_sides(eye, cached.top_radius(voxels.layout())),
+                    None => ColumnSides::of(voxels.layout(), *column, None).back_sides(eye, None),
                 };
             }
         }
@@ -2384,23 +2389,34 @@ pub(crate) fn columns_across(layout: &nebula_voxel::ChunkLayout, column: ChunkCo
 pub(crate) struct ColumnSides {
     i: [nebula_math::DVec3; 2],
     j: [nebula_math::DVec3; 2],
+    /// The direction through the middle of its patch, and the cosine and
+    /// sine of the largest angle from it to a point of the patch (its
+    /// node's bounds, where it had them when cached: read once, not from
+    /// the tree every frame).
+    directions: Option<(nebula_math::DVec3, f64, f64)>,
     pub(crate) across: [Option<ChunkColumn>; 4],
 }
 
 impl ColumnSides {
-    pub(crate) fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn) -> Self {
+    pub(crate) fn of(layout: &nebula_voxel::ChunkLayout, column: ChunkColumn, bounds: Option<&NodeBounds>) -> Self {
         let sphere = layout.sphere();
         let size = i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod);
         let planes = |along_u: bool, first: i64| {
             [first, first + size].map(|c| sphere.lattice_plane_normal(column.face, along_u, c))
         };
         let across = columns_across(layout, column);
-        Self { i: planes(true, i64::from(column.x) * size), j: planes(false, i64::from(column.y) * size), across }
+        Self {
+            i: planes(true, i64::from(column.x) * size),
+            j: planes(false, i64::from(column.y) * size),
+            directions: bounds.map(|b| (b.center_direction, b.angular_radius.cos(), b.angular_radius.sin())),
+            across,
+        }
     }
 
     /// The sides whose faces all look away from `eye` (bit `FaceDirection
-    /// as usize`), the radial faces looking down among them where `radial`
-    /// gives the column's node bounds and a radius its faces lie under.
+    /// as usize`), the radial faces looking down among them where the
+    /// column's faces lie under `top` (metres from the centre) and its
+    /// patch's directions are known.
     ///
     /// A wall looking towards +i lies in the plane through the planet
     /// centre of its lattice line `i = c` and faces the eye only when the
@@ -2415,7 +2431,7 @@ impl ColumnSides {
     /// v·n ≤ top: an eye above `top` in every direction of the patch sees
     /// none. (Faces looking up are never left out: stitched seams'
     /// zero-area zips lie in their range.)
-    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, radial: Option<(&NodeBounds, f64)>) -> u8 {
+    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, top: Option<f64>) -> u8 {
         const MARGIN_M: f64 = 1e-3;
         let mut hidden = 0;
         for (planes, positive, negative) in
@@ -2429,9 +2445,13 @@ impl ColumnSides {
                 hidden |= 1 << negative as u8;
             }
         }
-        if let Some((bounds, top)) = radial {
-            let farthest = eye.angle_between(bounds.center_direction) + bounds.angular_radius;
-            if farthest < std::f64::consts::FRAC_PI_2 && eye.length() * farthest.cos() > top + MARGIN_M {
+        if let (Some((centre, cos_radius, sin_radius)), Some(top)) = (self.directions, top) {
+            // |eye|·cos(θ + ρ), θ the eye's angle from the middle and ρ the
+            // patch's angular radius: the least eye·n over the patch (no
+            // trigonometry every frame for every column).
+            let along = eye.dot(centre);
+            let across = (eye.length_squared() - along * along).max(0.0).sqrt();
+            if along * cos_radius - across * sin_radius > top + MARGIN_M {
                 hidden |= 1 << FaceDirection::NegY as u8;
             }
         }
