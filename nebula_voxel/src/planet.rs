@@ -263,6 +263,7 @@ struct Climate {
 }
 
 /// Where [`ProceduralPlanet::surface`] changes its answer at one latitude.
+#[derive(Clone, Copy)]
 struct SurfaceThresholds {
     /// Heights, metres: the snow line, bare rock, sea level, the shore,
     /// the tree line.
@@ -496,6 +497,14 @@ impl ProceduralPlanet {
         Ok(planet)
     }
 
+    /// The same planet with an empty height cache of its own (clones share
+    /// theirs): every column computed afresh, the same voxels. What a cold
+    /// start costs, and what the cache's tests compare against.
+    #[must_use]
+    pub fn with_empty_cache(&self) -> Self {
+        Self { heights: Arc::default(), ..self.clone() }
+    }
+
     /// The settings the planet was built from.
     #[must_use]
     pub fn settings(&self) -> &PlanetSettings {
@@ -662,6 +671,16 @@ impl ProceduralPlanet {
         let rounds = fractals.iter().map(|f| f.octaves()).max().unwrap_or(0);
         let mut columns = vec![Column::UNKNOWN; directions.len()];
         let mut open: Vec<usize> = (0..directions.len()).collect();
+        // The columns whose ridges can still matter. Where the continents
+        // sum ends at or below `MOUNTAIN_START` the mountain mask is 0, so
+        // H and the climate are the same bit for bit whatever the ridges
+        // add (`combine`: `mountains` is their term times the mask): such a
+        // column's ridges stop at the octave that shows it (most of a
+        // planet's lowland and sea; 16 of an Earth column's 44 octaves).
+        let mut ridged: Vec<usize> = open.clone();
+        // The material thresholds by column, once (each look used them; two
+        // `exp`s and an `asin` a look were 8 % of a LOD-0 chunk).
+        let thresholds: Vec<SurfaceThresholds> = directions.iter().map(|d| self.surface_thresholds(d.z)).collect();
         // A look costs about what an octave does: none before the octaves
         // left could, even at best, leave a voxel's height of room (the fBm
         // sums' rest through `combine`'s least slopes), then every other
@@ -675,9 +694,17 @@ impl ProceduralPlanet {
             })
             .unwrap_or(rounds);
         for round in 1..=rounds {
-            for (fractal, batch) in fractals.iter().zip(&mut batches) {
-                fractal.step(batch, &open);
-            }
+            let [continents, ridges, hills] = &mut batches;
+            self.continents.step(continents, &open);
+            // The continents' bounds only narrow as octaves come in (each
+            // adds at most the weight `rest` allowed for), so a column
+            // whose high end is below the mountains' start stays there; a
+            // millionth spare for rounding.
+            ridged.retain(|&k| {
+                columns[k].height.is_nan() && self.continents.bounds(continents, k).1 > MOUNTAIN_START - 1e-6
+            });
+            self.ridges.step(ridges, &ridged);
+            self.hills.step(hills, &open);
             let last = round == rounds;
             if !last && (round < first_look || (round - first_look) % 2 == 1) {
                 continue;
@@ -701,7 +728,7 @@ impl ProceduralPlanet {
                 // The climate's ranges, as H's (`mountains` rises with both sums).
                 let climates = [(c_low, self.mountains(c_low, r_low)), (c_high, self.mountains(c_high, r_high))]
                     .map(|(continents, mountains)| Climate { sin_latitude: directions[k].z, continents, mountains });
-                if !last && self.undecided(low, high, climates, span) {
+                if !last && self.undecided(low, high, climates, &thresholds[k], span) {
                     return true;
                 }
                 let height = if last { low } else { 0.5 * (low + high) };
@@ -719,7 +746,7 @@ impl ProceduralPlanet {
                 } else {
                     ((0.5 * (high - low) / self.layer_height * (1.0 + 1e-6)) as f32).max(f32::MIN_POSITIVE)
                 };
-                columns[k] = Column { slack, caves: caves[k], ..self.sample(height, climate) };
+                columns[k] = Column { slack, caves: caves[k], ..self.sample(height, climate, &thresholds[k]) };
                 false
             });
             if open.is_empty() {
@@ -735,11 +762,17 @@ impl ProceduralPlanet {
     /// ([`Self::surface_thresholds`]), or in layers a voxel centre
     /// (`(h + 1)·span − 1/2`) or the depth below one where dirt gives way
     /// to stone (3 layers more, `classify_depth`).
-    fn undecided(&self, low: f64, high: f64, climates: [Climate; 2], span: f64) -> bool {
+    fn undecided(
+        &self,
+        low: f64,
+        high: f64,
+        climates: [Climate; 2],
+        thresholds: &SurfaceThresholds,
+        span: f64,
+    ) -> bool {
         const ROUNDING: f64 = 1e-6;
         let between = |t: f64, low: f64, high: f64| low - ROUNDING <= t && t <= high + ROUNDING;
         let [least, most] = climates;
-        let thresholds = self.surface_thresholds(least.sin_latitude);
         if thresholds.heights.iter().any(|&t| between(t, low, high))
             || thresholds.continents.iter().any(|&t| between(t, least.continents, most.continents))
             || between(thresholds.mountains, least.mountains, most.mountains)
@@ -789,14 +822,16 @@ impl ProceduralPlanet {
         } else {
             ColumnCaves::NONE
         };
-        Column { caves, ..self.sample(self.combine(continents, ridges, hills), climate) }
+        let thresholds = self.surface_thresholds(climate.sin_latitude);
+        Column { caves, ..self.sample(self.combine(continents, ridges, hills), climate, &thresholds) }
     }
 
     /// The column whose terrain height is `height_m` metres, in `climate`.
-    fn sample(&self, height_m: f64, climate: Climate) -> Column {
+    /// `thresholds` are [`Self::surface_thresholds`] at its latitude.
+    fn sample(&self, height_m: f64, climate: Climate, thresholds: &SurfaceThresholds) -> Column {
         Column {
             height: height_m / self.layer_height,
-            surface: self.surface(height_m, climate),
+            surface: self.surface(height_m, climate, thresholds),
             slack: 0.0,
             caves: ColumnCaves::NONE,
         }
@@ -831,9 +866,10 @@ impl ProceduralPlanet {
     /// column does not know), sand at the shore and in the subtropical
     /// deserts inland, forest in the wet belts (tropical and temperate)
     /// below the tree line, grass elsewhere.
-    fn surface(&self, height_m: f64, climate: Climate) -> Voxel {
+    /// `thresholds` are [`Self::surface_thresholds`] at its latitude.
+    fn surface(&self, height_m: f64, climate: Climate, thresholds: &SurfaceThresholds) -> Voxel {
         let SurfaceThresholds { heights: [snow_line, bare_rock, sea_level, shore, tree_line], continents, mountains } =
-            self.surface_thresholds(climate.sin_latitude);
+            *thresholds;
         let [desert_from, forest_below] = continents;
         if height_m > snow_line {
             Voxel::SNOW
@@ -1406,8 +1442,12 @@ mod tests {
                     assert!((layers - column.height).abs() <= slack, "lod {lod}: {layers} vs {column:?}");
                     let (low, high) =
                         ((column.height - slack) * planet.layer_height, (column.height + slack) * planet.layer_height);
-                    assert!(!planet.undecided(low, high, [climate; 2], span), "lod {lod}: {column:?} undecided");
-                    assert_eq!(column.surface, planet.sample(truth, climate).surface);
+                    let thresholds = planet.surface_thresholds(climate.sin_latitude);
+                    assert!(
+                        !planet.undecided(low, high, [climate; 2], &thresholds, span),
+                        "lod {lod}: {column:?} undecided"
+                    );
+                    assert_eq!(column.surface, planet.sample(truth, climate, &thresholds).surface);
                 }
                 exact_share.push(exact as f64 / columns.len() as f64);
             }
