@@ -279,7 +279,7 @@ impl PlanetApp {
         let drawn = self
             .streamer()
             .drawn()
-            .filter_map(|(_, chunk, draw)| chunk.cpu.as_ref().map(|mesh| (mesh, draw)))
+            .filter_map(|(_, chunk, draw)| chunk.cpu.as_deref().map(|mesh| (mesh, draw)))
             .collect();
         nebula_render::crack::DrawnGeometry {
             drawn,

@@ -187,9 +187,11 @@ pub struct GpuMesh {
     /// Where its vertices, indices and skirt edges live (`None`: empty,
     /// never drawn).
     slot: Option<Slot>,
-    surface_side_ranges: [std::ops::Range<usize>; 6],
-    /// Each side's range of skirt edges.
-    skirt_ranges: [std::ops::Range<usize>; 4],
+    /// Each side's range of surface indices, `[start, end)` (u32 pairs,
+    /// not `Range<usize>`: a cache holds tens of thousands of meshes).
+    surface_side_ranges: [[u32; 2]; 6],
+    /// Each side's range of skirt edges, `[start, end)`.
+    skirt_ranges: [[u32; 2]; 4],
     /// The chunk's LOD.
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
@@ -203,6 +205,17 @@ impl nebula_world::stream::MeshHandle for GpuMesh {
     fn bytes(&self) -> u64 {
         self.bytes
     }
+}
+
+/// A mesh's index or edge range as two u32s (an upload's counts already fit
+/// in its u32 indices).
+fn narrow_range(range: std::ops::Range<usize>) -> [u32; 2] {
+    [range.start, range.end].map(|n| u32::try_from(n).unwrap_or(u32::MAX))
+}
+
+/// [`narrow_range`] back.
+fn widen_range([start, end]: [u32; 2]) -> std::ops::Range<usize> {
+    start as usize..end as usize
 }
 
 /// What a frame draws: the view and the per-frame constants.
@@ -485,8 +498,8 @@ impl MeshUploader {
         GpuMesh {
             bytes: slot.as_ref().map_or(0, Slot::bytes),
             slot,
-            surface_side_ranges: mesh.surface_side_ranges.clone(),
-            skirt_ranges: mesh.skirt_ranges.clone(),
+            surface_side_ranges: mesh.surface_side_ranges.clone().map(narrow_range),
+            skirt_ranges: mesh.skirt_ranges.clone().map(narrow_range),
             lod: key.lod,
             id: id % 4096,
         }
@@ -999,7 +1012,7 @@ impl PlanetRenderer {
             let format = usize::from(slot.index_format() == INDEX_FORMATS[1]);
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
             let batch = &mut by_page[slot.page];
-            for range in drawn_ranges(&mesh.surface_side_ranges, &draw) {
+            for range in drawn_ranges(&mesh.surface_side_ranges.map(widen_range), &draw) {
                 batch.surface[format].push(DrawIndexedIndirectArgs {
                     index_count: range.len() as u32,
                     instance_count: 1,
@@ -1010,7 +1023,7 @@ impl PlanetRenderer {
             }
             // A skirt's vertex index is its side, then 6 per edge and the
             // corner (the skirt shader reads them back).
-            for (side, edges) in lowered_skirts(&mesh.skirt_ranges, &draw) {
+            for (side, edges) in lowered_skirts(&mesh.skirt_ranges.map(widen_range), &draw) {
                 batch.skirts.push(DrawIndirectArgs {
                     vertex_count: 6 * edges.len() as u32,
                     instance_count: 1,

@@ -156,13 +156,14 @@ pub struct LoadedChunk<H> {
     pub handle: H,
     /// Surface triangles looking towards each side (index
     /// `FaceDirection as usize`).
-    pub surface_triangles: [usize; 6],
+    pub surface_triangles: [u32; 6],
     /// Skirt triangles per side (as in `FaceDirection::HORIZONTAL`).
-    pub skirt_triangles: [usize; 4],
+    pub skirt_triangles: [u32; 4],
     /// The mesh on the CPU, when the streamer keeps them
     /// ([`Streamer::keep_cpu_meshes`], for checks that ray-cast what is
-    /// drawn).
-    pub cpu: Option<RenderMesh>,
+    /// drawn). Boxed, as the counts are `u32`: a cache holds tens of
+    /// thousands of these, most without a CPU copy.
+    pub cpu: Option<Box<RenderMesh>>,
     /// The LOD relations across its sides it was made for
     /// ([`SeamStrategy`]; the same all round for skirts).
     pub made_for: SideRelations,
@@ -178,13 +179,21 @@ impl<H: MeshHandle> LoadedChunk<H> {
         keep_cpu: bool,
     ) -> Self {
         let handle = upload(key, &mesh);
-        let (surface_triangles, skirt_triangles) = mesh.triangle_counts();
-        Self { handle, surface_triangles, skirt_triangles, cpu: keep_cpu.then_some(mesh), made_for: SAME_ALL_ROUND }
+        let (surface, skirts) = mesh.triangle_counts();
+        // A chunk mesh holds at most a few hundred thousand triangles.
+        let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+        Self {
+            handle,
+            surface_triangles: surface.map(count),
+            skirt_triangles: skirts.map(count),
+            cpu: keep_cpu.then(|| Box::new(mesh)),
+            made_for: SAME_ALL_ROUND,
+        }
     }
 
     fn held(&self) -> Held {
         let renderer_bytes = self.handle.bytes();
-        Held { chunks: 1, bytes: renderer_bytes + self.cpu.as_ref().map_or(0, RenderMesh::bytes), renderer_bytes }
+        Held { chunks: 1, bytes: renderer_bytes + self.cpu.as_deref().map_or(0, RenderMesh::bytes), renderer_bytes }
     }
 }
 
@@ -322,6 +331,10 @@ impl<H> LayerMeshes<H> {
         match self.0.binary_search_by_key(&layer, |(l, _)| *l) {
             Ok(at) => Some(std::mem::replace(&mut self.0[at].1, chunk)),
             Err(at) => {
+                // Most columns hold one or two layers: room for exactly
+                // those, not the four a growing vector starts with (a
+                // cache holds tens of thousands of columns).
+                self.0.reserve_exact(1);
                 self.0.insert(at, (layer, chunk));
                 self.1 = self.0.last().map(|(l, _)| *l);
                 None
@@ -1892,12 +1905,17 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             StreamFigures { lod_histogram: vec![0; usize::from(max_lod) + 1], ..StreamFigures::default() };
         for (key, chunk, draw) in self.drawn() {
             figures.chunks += 1;
-            let skirts: usize =
-                chunk.skirt_triangles.iter().zip(draw.skirt_depths).filter(|(_, d)| *d > 0.0).map(|(n, _)| n).sum();
-            let shown = |(side, n): (usize, &usize)| if draw.hidden_sides & (1 << side) == 0 { *n } else { 0 };
+            let skirts: usize = chunk
+                .skirt_triangles
+                .iter()
+                .zip(draw.skirt_depths)
+                .filter(|(_, d)| *d > 0.0)
+                .map(|(&n, _)| n as usize)
+                .sum();
+            let shown = |(side, &n): (usize, &u32)| if draw.hidden_sides & (1 << side) == 0 { n as usize } else { 0 };
             figures.triangles += chunk.surface_triangles.iter().enumerate().map(shown).sum::<usize>() + skirts;
             figures.skirt_triangles += skirts;
-            figures.skirt_triangles_held += chunk.skirt_triangles.iter().sum::<usize>();
+            figures.skirt_triangles_held += chunk.skirt_triangles.iter().map(|&n| n as usize).sum::<usize>();
             figures.lod_histogram[usize::from(key.lod)] += 1;
         }
         figures.threshold_px = self.tree.screen_space().threshold_px();
@@ -1972,7 +1990,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 };
                 if !self.cache.keep_cpu {
                     // Freed by a meshing worker (`JobState::spent`).
-                    self.spent.extend(loaded.cpu.take());
+                    self.spent.extend(loaded.cpu.take().map(|mesh| *mesh));
                 }
                 loaded
             }

@@ -1162,7 +1162,7 @@ mod streaming {
                 let fresh = nebula_meshing::mesh_chunk(voxels, *key, &context, seams.mesh_options(), &mut buffer)
                     .expect("meshes")
                     .render_mesh();
-                chunk.cpu.as_ref() != Some(&fresh)
+                chunk.cpu.as_deref() != Some(&fresh)
             })
             .count()
     }
@@ -1292,7 +1292,7 @@ mod streaming {
             streamer
                 .drawn()
                 .map(|(key, chunk, draw)| {
-                    (key, (chunk.made_for, chunk.cpu.clone().unwrap_or_default(), draw.skirt_depths))
+                    (key, (chunk.made_for, chunk.cpu.as_deref().cloned().unwrap_or_default(), draw.skirt_depths))
                 })
                 .collect()
         };

@@ -1369,7 +1369,7 @@ fn floating_islands_stream_and_draw_crack_free() {
         renderer.render(&target.view, SIZE, &frame, streamer.drawn().map(|(_, chunk, draw)| (&chunk.handle, draw)));
         let rgba = target.read(&gpu).expect("read back");
         let drawn =
-            streamer.drawn().filter_map(|(_, chunk, draw)| chunk.cpu.as_ref().map(|mesh| (mesh, draw))).collect();
+            streamer.drawn().filter_map(|(_, chunk, draw)| chunk.cpu.as_deref().map(|mesh| (mesh, draw))).collect();
         let geometry = nebula_render::crack::DrawnGeometry {
             drawn,
             frame: frame_draw,
