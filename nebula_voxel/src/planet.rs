@@ -251,8 +251,9 @@ pub struct ProceduralPlanet {
 /// column's parent a little before the column (coarse first): a few
 /// hundred columns catch most of both. 2,048 held 57 MB, the largest
 /// block of the 1 km/s flights' heap after the GPU's; at 1,024 the
-/// flights meshed 3–8 % fewer chunks in the same 30 s (53.5–62.2 k against
-/// 57.9–63.6 k, alternating runs), within their run-to-run spread.
+/// flights meshed 0–8 % fewer chunks in the same 30 s (alternating runs:
+/// mountains 59.3–62.6 k against 61.9–63.1 k, land 53.5–55.8 k against
+/// 55.0–59.9 k), about the runs' own spread.
 const HEIGHT_CACHE_COLUMNS: usize = 1024;
 
 /// What a column's top material depends on besides its height.
