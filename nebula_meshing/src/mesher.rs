@@ -46,7 +46,7 @@
 use block_mesh::ndshape::ConstShape;
 use block_mesh::{OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad};
 use block_mesh_bgm::{BinaryGreedyQuadsBuffer, binary_greedy_quads};
-use nebula_math::{DVec3, FaceDirection, Vec3};
+use nebula_math::{Cubesphere, DVec3, FaceDirection, LatticePoint, Vec3};
 use nebula_voxel::{
     CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PADDED_COLUMNS,
     PaddedChunkShape, Voxel,
@@ -61,6 +61,9 @@ const POINTS: usize = CHUNK_SIZE as usize + 1;
 
 /// The last lattice coordinate of a chunk (its far boundary plane).
 const LAST: i32 = CHUNK_SIZE as i32;
+/// Slots per cube axis of the warp memo (a 6-bit hash): a chunk's
+/// lattice columns span at most 33 coordinates an axis.
+const WARP_SLOTS: usize = 64;
 
 /// Which lattice points on a chunk's boundary planes become vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,6 +102,10 @@ pub struct ChunkMesher {
     vertex_slot: Vec<(u32, u32)>,
     /// Per lattice column (x, z): `(stamp, unit direction)`.
     column_direction: Vec<(u32, DVec3)>,
+    /// Per cube axis, a direct-mapped memo of the sphere map's warp of a
+    /// cube coordinate: `(stamp, coordinate, warped)` (see
+    /// `warped_column_direction`).
+    warps: [[(u32, i32, f64); WARP_SLOTS]; 3],
     /// Per lattice point: `(stamp, world position)`.
     point_world: Vec<(u32, DVec3)>,
     /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
@@ -154,6 +161,7 @@ impl ChunkMesher {
             covered_stamp: vec![0; 6 * PADDED_CHUNK_VOLUME],
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
+            warps: [[(0, 0, 0.0); WARP_SLOTS]; 3],
             point_world: vec![(0, DVec3::ZERO); POINTS * POINTS * POINTS],
             wall_normal: vec![(0, DVec3::ZERO); 2 * POINTS],
             stamp: 0,
@@ -290,6 +298,7 @@ impl ChunkMesher {
             self.covered_stamp.fill(0);
             self.vertex_slot.fill((0, 0));
             self.column_direction.fill((0, DVec3::ZERO));
+            self.warps = [[(0, 0, 0.0); WARP_SLOTS]; 3];
             self.point_world.fill((0, DVec3::ZERO));
             self.wall_normal.fill((0, DVec3::ZERO));
             self.stamp = 1;
@@ -729,7 +738,7 @@ impl ChunkMesher {
             // Layer 0 names the column even when the chunk's bottom lies below
             // the planet centre (the coarsest chunks of a planet do).
             let point = layout.column_point(key, i64::from(local[0]), i64::from(local[2]))?;
-            self.column_direction[column] = (self.stamp, sphere.column_direction(point));
+            self.column_direction[column] = (self.stamp, self.warped_column_direction(sphere, point));
         }
         // The point's radial layer, exactly as `ChunkLayout::lattice_point`
         // counts it (the chunk key is valid, so it fits).
@@ -738,6 +747,29 @@ impl ChunkMesher {
         let world = sphere.position_on_column(self.column_direction[column].1, layer as i32);
         self.point_world[index] = (self.stamp, world);
         Ok(world)
+    }
+
+    /// [`Cubesphere::column_direction`] of `point`, bit for bit, with each
+    /// cube coordinate's warp (a `tan` on the equi-angular map) taken from
+    /// a memo: a chunk's columns share their coordinates along rows and
+    /// columns, and the two `tan`s of every vertex column were 7 % of
+    /// meshing a surface chunk.
+    fn warped_column_direction(&mut self, sphere: &Cubesphere, point: LatticePoint) -> DVec3 {
+        let half = f64::from(sphere.resolution() / 2);
+        let stamp = self.stamp;
+        let mut warp = |axis: usize, c: i32| {
+            // Fibonacci hashing: a chunk's coordinates step by its voxel
+            // span, a power of two that would put them all in one slot.
+            let slot = &mut self.warps[axis][((c as u32).wrapping_mul(0x9E37_79B9) >> 26) as usize];
+            if slot.0 != stamp || slot.1 != c {
+                *slot = (stamp, c, sphere.map().warp(f64::from(c) / half));
+            }
+            slot.2
+        };
+        // `SphereMap::direction`'s arithmetic on `cube / half`.
+        let direction = DVec3::new(warp(0, point.cube.x), warp(1, point.cube.y), warp(2, point.cube.z)).normalize();
+        debug_assert_eq!(direction, sphere.column_direction(point));
+        direction
     }
 
     /// The exact normal of a voxel face looking towards `side` at `local`:
@@ -889,9 +921,17 @@ impl FaceAxes {
         self.face.quad_corners(quad).map(|c| c.to_array().map(|v| v as i32 - 1))
     }
 
-    /// Whether some face of `quad` has an edge on a boundary plane.
+    /// Whether some face of `quad` has an edge on a boundary plane: a
+    /// corner coordinate ([`Self::corners`]) of 0 or `LAST`. The corners
+    /// span the quad's plane along `n` and its two ends along `u` and `v`,
+    /// so those five numbers are checked (building the four corners for it
+    /// was 8 % of meshing a surface chunk).
     fn touches_boundary(&self, quad: &UnorientedQuad) -> bool {
-        self.corners(quad).iter().flatten().any(|&c| c == 0 || c == LAST)
+        let plane = self.plane_of(quad.minimum[self.n] as i32 - 1);
+        let (u, v) = (quad.minimum[self.u] as i32 - 1, quad.minimum[self.v] as i32 - 1);
+        let touches = [plane, u, u + quad.width as i32, v, v + quad.height as i32].iter().any(|&c| c == 0 || c == LAST);
+        debug_assert_eq!(touches, self.corners(quad).iter().flatten().any(|&c| c == 0 || c == LAST));
+        touches
     }
 
     /// Whether `quad` may stay whole although it touches a boundary plane:

@@ -140,6 +140,7 @@ impl ChunkVoxels {
     /// The voxel at padded coordinates `[x, y, z]` (each `0..34`), or `None`
     /// outside the padded chunk.
     #[must_use]
+    #[inline]
     pub fn get(&self, padded: [u32; 3]) -> Option<Voxel> {
         padded.iter().all(|&c| c < PADDED_CHUNK_SIZE).then(|| self.voxels[PaddedChunkShape::linearize(padded) as usize])
     }
