@@ -146,7 +146,6 @@ impl Cubesphere {
     /// direction once; the two calls do exactly the arithmetic of
     /// `position`, so the result is bit-identical.
     #[must_use]
-    #[inline]
     pub fn column_direction(&self, point: LatticePoint) -> DVec3 {
         let half = f64::from(self.resolution / 2);
         self.map.direction(point.cube.as_dvec3() / half)
@@ -168,7 +167,6 @@ impl Cubesphere {
     /// constant `i` is a great circle and the side walls of voxels are flat
     /// pieces of these planes: this is their exact normal.
     #[must_use]
-    #[inline]
     pub fn lattice_plane_normal(&self, face: CubeFace, along_u: bool, coord: i64) -> DVec3 {
         let half = f64::from(self.resolution / 2);
         let t = (coord as f64 - half) / half;
@@ -184,7 +182,6 @@ impl Cubesphere {
     /// terrain, not for mesh vertices: those go through
     /// [`Cubesphere::position`].
     #[must_use]
-    #[inline]
     pub fn direction(&self, face: CubeFace, i: f64, j: f64) -> DVec3 {
         self.direction_warped(face, self.warp(i), self.warp(j))
     }
@@ -193,7 +190,6 @@ impl Cubesphere {
     /// for [`Cubesphere::direction_warped`]: a grid of directions costs one
     /// warp (a `tan`) per row and per column instead of two per point.
     #[must_use]
-    #[inline]
     pub fn warp(&self, c: f64) -> f64 {
         let half = f64::from(self.resolution / 2);
         self.map.warp((c - half) / half)
@@ -204,7 +200,6 @@ impl Cubesphere {
     /// normal component is ±1 and the map is odd, so warping the cube point
     /// componentwise is warping `i` and `j`.
     #[must_use]
-    #[inline]
     pub fn direction_warped(&self, face: CubeFace, warped_i: f64, warped_j: f64) -> DVec3 {
         (face.normal().as_dvec3() + face.u_axis().as_dvec3() * warped_i + face.v_axis().as_dvec3() * warped_j)
             .normalize()

@@ -128,7 +128,6 @@ impl ChunkLayout {
 
     /// The planet's lattice geometry.
     #[must_use]
-    #[inline]
     pub fn sphere(&self) -> &Cubesphere {
         &self.sphere
     }
@@ -142,7 +141,6 @@ impl ChunkLayout {
     /// Lattice cells (and radial layers) per voxel at `lod`: 2^lod. LODs
     /// past 62 (never a planet's) saturate at 2^62 instead of overflowing.
     #[must_use]
-    #[inline]
     pub fn voxel_span(&self, lod: u8) -> i64 {
         1 << lod.min(62)
     }
@@ -169,7 +167,6 @@ impl ChunkLayout {
     /// that LOD-0 column. One owner, so every source's per-column and
     /// per-row directions agree bit for bit.
     #[must_use]
-    #[inline]
     pub fn sample_coord(&self, c: i64, lod: u8) -> f64 {
         (c as f64 + 1.0) * self.voxel_span(lod) as f64 - 0.5
     }
@@ -178,7 +175,6 @@ impl ChunkLayout {
     /// of `lod` samples under the far-corner rule: the centre of the LOD-0
     /// voxel in its far corner.
     #[must_use]
-    #[inline]
     pub fn sample_layer(&self, h: i64, lod: u8) -> f64 {
         (h + 1) as f64 * self.voxel_span(lod) as f64 - 0.5
     }
