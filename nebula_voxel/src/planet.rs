@@ -309,7 +309,17 @@ impl SumRanges {
 #[derive(Default)]
 struct HeightCache {
     entries: Mutex<HeightEntries>,
+    /// H in layers at lattice points `(face, i, j)` where the LOD tree's
+    /// column bounds sample it (`column_relief`: each column's corners and
+    /// centre). A node's children share its corners and centre and each
+    /// other's edges: 8 new points for 4 children instead of 20 (a 12°
+    /// lens's tree has 276,000 nodes; full-height samples were 9 % of the
+    /// view's CPU time). Emptied when it reaches `HEIGHT_CACHE_POINTS`.
+    points: Mutex<HashMap<(CubeFace, i64, i64), f64>>,
 }
+
+/// Lattice points [`HeightCache`] keeps at most: about 3 MB.
+const HEIGHT_CACHE_POINTS: usize = 1 << 16;
 
 /// The cached heights by column, and the columns oldest first.
 type HeightEntries = (HashMap<ChunkColumn, Arc<[Column]>>, VecDeque<ChunkColumn>);
@@ -355,6 +365,23 @@ impl Column {
 impl HeightCache {
     fn get(&self, column: ChunkColumn) -> Option<Arc<[Column]>> {
         self.entries.lock().ok()?.0.get(&column).cloned()
+    }
+
+    /// H in layers at lattice point `(i, j)` of `face`, from the memo or
+    /// from `compute`.
+    fn point(&self, face: CubeFace, i: i64, j: i64, compute: impl FnOnce() -> f64) -> f64 {
+        let known = self.points.lock().ok().and_then(|points| points.get(&(face, i, j)).copied());
+        if let Some(h) = known {
+            return h;
+        }
+        let h = compute();
+        if let Ok(mut points) = self.points.lock() {
+            if points.len() >= HEIGHT_CACHE_POINTS {
+                points.clear();
+            }
+            points.insert((face, i, j), h);
+        }
+        h
     }
 
     fn insert(&self, column: ChunkColumn, heights: Arc<[Column]>) {
@@ -1199,10 +1226,12 @@ impl ProceduralPlanet {
         let (mut low, mut high) = self.heights(ranges);
         if 2.0 * margin < high - low {
             let (mut sampled_low, mut sampled_high) = (f64::INFINITY, f64::NEG_INFINITY);
-            for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)] {
-                let i = f64::from(column.x) * chunk + a * chunk;
-                let j = f64::from(column.y) * chunk + b * chunk;
-                let h = self.height_layers(column.face, i, j);
+            // Whole lattice coordinates (a chunk is 32 voxels of `span`).
+            let cells = i64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod);
+            for (a, b) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)] {
+                let i = i64::from(column.x) * cells + a * cells / 2;
+                let j = i64::from(column.y) * cells + b * cells / 2;
+                let h = self.heights.point(column.face, i, j, || self.height_layers(column.face, i as f64, j as f64));
                 sampled_low = sampled_low.min(h);
                 sampled_high = sampled_high.max(h);
             }

@@ -414,6 +414,36 @@ fn cached_heights_give_the_same_voxels() {
     assert!(checked > 336, "only {checked} chunks checked");
 }
 
+/// The surface bounds the LOD tree asks for while it splits (each node,
+/// then its four children, then theirs, sharing corner and centre
+/// heights through the planet's memo) equal the bounds from a copy with
+/// an empty cache, on every face of Earth and the small planet.
+#[test]
+fn surface_bounds_through_the_height_memo_equal_cold_ones() {
+    let mut checked = 0;
+    for settings in [PlanetSettings::earth(6), PlanetSettings::small(6)] {
+        let warm = ProceduralPlanet::new(settings).unwrap();
+        let max_lod = warm.layout().max_lod();
+        for face in CubeFace::ALL {
+            // Down one branch of the face's quadtree, every child of each
+            // node on the way, as a splitting tree asks.
+            let mut column = ChunkColumn { face, lod: max_lod, x: 0, y: 0 };
+            while column.lod > 0 {
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let child = ChunkColumn { face, lod: column.lod - 1, x: column.x * 2 + dx, y: column.y * 2 + dy };
+                    let cold = warm.with_empty_cache().surface_bounds(child).unwrap();
+                    assert_eq!(warm.surface_bounds(child).unwrap(), cold, "{child:?}");
+                    checked += 1;
+                }
+                let turn = u32::from(column.lod) % 4;
+                column =
+                    ChunkColumn { face, lod: column.lod - 1, x: column.x * 2 + turn % 2, y: column.y * 2 + turn / 2 };
+            }
+        }
+    }
+    assert!(checked >= 2 * 6 * 4 * 6, "only {checked} bounds checked");
+}
+
 /// A chunk's voxels, whose column heights are computed all at once
 /// (octave by octave, sharing noise cells), equal the voxels read one at a
 /// time: Earth and the small planet, surface chunks from LOD 0 to near the
