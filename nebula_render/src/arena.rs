@@ -186,7 +186,8 @@ impl MeshArena {
             skirt_edges.iter().flatten().copied().collect()
         };
         let tail_bytes = 4 * (index_words + edge_words.len());
-        let units = vertex_count.checked_add(u32::try_from(tail_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?;
+        let units =
+            size_class(vertex_count.checked_add(u32::try_from(tail_bytes.div_ceil(UNIT_BYTES as usize)).ok()?)?);
         let mut pages = self.pages.lock().ok()?;
         let found = pages.pages.iter_mut().enumerate().find_map(|(n, page)| Some((n, page.space.allocate(units)?)));
         let (page, range) = match found {
@@ -226,6 +227,24 @@ impl MeshArena {
     pub fn lock(&self) -> MutexGuard<'_, Pages> {
         self.pages.lock().expect("mesh arena lock poisoned by an earlier panic")
     }
+}
+
+/// `units` rounded up to the allocator's size class (four significant
+/// bits: at most 12.5 % more, 6 % on average).
+///
+/// Why: `offset-allocator` files a free range under the class its size
+/// rounds down to and serves a request from the class its size rounds up
+/// to, so a range freed by a mesh of an odd size fits no later mesh of
+/// that size. Over a 1 km/s flight, pages of 256 MiB of meshes grew to
+/// 320–336 MB of buffers. Ranges of whole classes fit every later mesh of
+/// their class; the rounding is charged to the mesh ([`Slot::bytes`]),
+/// so the budget sees it.
+fn size_class(units: u32) -> u32 {
+    if units < 16 {
+        return units;
+    }
+    let shift = 31 - units.leading_zeros() - 3;
+    units.div_ceil(1 << shift) << shift
 }
 
 fn new_page(device: &wgpu::Device, units: u32, n: usize) -> Page {

@@ -592,7 +592,34 @@ fn the_mesh_arena_reuses_freed_space_and_opens_pages_when_full() {
     let wide_skirted = write_with_edges(&wide, &[0, 1, 2], &edges).expect("uploaded");
     assert_eq!(wide_skirted.index_format(), wgpu::IndexFormat::Uint32);
     assert_eq!(u64::from(wide_skirted.first_edge_word()) * 4, u64::from(wide_skirted.first_index()) * 4 + 12);
-    assert_eq!(wide_skirted.bytes(), (wide.len() as u64 + 2) * unit_bytes());
+    // 65,539 units rounded up to the allocator's size class (4 significant
+    // bits): 9 × 2^13.
+    assert_eq!(wide_skirted.bytes(), 9 * (1 << 13) * unit_bytes());
+    // A range freed by a mesh of an odd size is reused by the next mesh of
+    // that size: ranges are whole size classes (the allocator files a free
+    // range under the class its size rounds down to and serves a mesh from
+    // the class its size rounds up to).
+    let fresh = MeshArena::default();
+    let write_fresh = |vertices| {
+        fresh
+            .upload(
+                &gpu.device,
+                &mut |target, offset, bytes| gpu.queue.write_buffer(target, offset, bytes),
+                vertices,
+                &[0, 1, 2],
+                &[],
+            )
+            .expect("uploaded")
+    };
+    let odd = vec![vertex; 1000];
+    let first = write_fresh(&odd);
+    // Keeps the first range from merging with the free space after it.
+    let _after = write_fresh(&odd);
+    assert_eq!(first.bytes(), 1024 * unit_bytes(), "1,001 units rounded up to their class");
+    let at = (first.page, first.first_vertex());
+    drop(first);
+    let same = write_fresh(&odd);
+    assert_eq!((same.page, same.first_vertex()), at, "a freed range fits the next mesh of its size");
 }
 
 fn unit_bytes() -> u64 {
