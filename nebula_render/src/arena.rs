@@ -133,7 +133,8 @@ impl Slot {
         self.index_format
     }
 
-    /// Bytes of the page it takes.
+    /// Bytes of the page it takes: the mesh rounded up to whole units and
+    /// then to its size class (`size_class`).
     #[must_use]
     pub fn bytes(&self) -> u64 {
         u64::from(self.units) * UNIT_BYTES

@@ -197,7 +197,8 @@ pub struct GpuMesh {
     /// A small number from the chunk key, for the chunk-colour view.
     pub id: u32,
     /// Bytes it takes in the renderer's buffers (its vertices, indices and
-    /// skirt edges, rounded up to whole vertices).
+    /// skirt edges, rounded up to whole vertices and then to the arena's
+    /// size class, `arena::Slot::bytes`).
     pub bytes: u64,
 }
 

@@ -161,8 +161,9 @@ pub struct LoadedChunk<H> {
     pub skirt_triangles: [u32; 4],
     /// The mesh on the CPU, when the streamer keeps them
     /// ([`Streamer::keep_cpu_meshes`], for checks that ray-cast what is
-    /// drawn). Boxed, as the counts are `u32`: a cache holds tens of
-    /// thousands of these, most without a CPU copy.
+    /// drawn). Boxed, and the counts above are `u32`s: a cache holds tens
+    /// of thousands of these, and in a game none has a CPU copy (8 bytes
+    /// instead of a `RenderMesh`'s 232).
     pub cpu: Option<Box<RenderMesh>>,
     /// The LOD relations across its sides it was made for
     /// ([`SeamStrategy`]; the same all round for skirts).
