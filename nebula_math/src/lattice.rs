@@ -147,8 +147,25 @@ impl Cubesphere {
     /// `position`, so the result is bit-identical.
     #[must_use]
     pub fn column_direction(&self, point: LatticePoint) -> DVec3 {
-        let half = f64::from(self.resolution / 2);
-        self.map.direction(point.cube.as_dvec3() / half)
+        self.column_direction_with(point, |_, c| self.cube_warp(c))
+    }
+
+    /// [`Cubesphere::column_direction`] with each cube coordinate's warp
+    /// from `warp(axis, coordinate)`, which must give
+    /// [`Cubesphere::cube_warp`] of the coordinate: a mesher keeps the
+    /// warps of a chunk's columns, which share their coordinates along
+    /// rows and columns (a `tan` each on the equi-angular map).
+    #[must_use]
+    pub fn column_direction_with(&self, point: LatticePoint, mut warp: impl FnMut(usize, i32) -> f64) -> DVec3 {
+        // `SphereMap::direction` of `cube / half`, one component at a time.
+        DVec3::new(warp(0, point.cube.x), warp(1, point.cube.y), warp(2, point.cube.z)).normalize()
+    }
+
+    /// A cube coordinate of a lattice point warped by the sphere map, as
+    /// [`Cubesphere::column_direction`] warps it before normalising.
+    #[must_use]
+    pub fn cube_warp(&self, c: i32) -> f64 {
+        self.map.warp(f64::from(c) / f64::from(self.resolution / 2))
     }
 
     /// The position at radial layer `layer` on the column with unit

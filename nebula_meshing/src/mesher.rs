@@ -750,24 +750,20 @@ impl ChunkMesher {
     }
 
     /// [`Cubesphere::column_direction`] of `point`, bit for bit, with each
-    /// cube coordinate's warp (a `tan` on the equi-angular map) taken from
-    /// a memo: a chunk's columns share their coordinates along rows and
-    /// columns, and the two `tan`s of every vertex column were 7 % of
-    /// meshing a surface chunk.
+    /// cube coordinate's warp taken from a memo
+    /// ([`Cubesphere::column_direction_with`]): the two `tan`s of every
+    /// vertex column were 7 % of meshing a surface chunk.
     fn warped_column_direction(&mut self, sphere: &Cubesphere, point: LatticePoint) -> DVec3 {
-        let half = f64::from(sphere.resolution() / 2);
-        let stamp = self.stamp;
-        let mut warp = |axis: usize, c: i32| {
+        let (stamp, warps) = (self.stamp, &mut self.warps);
+        let direction = sphere.column_direction_with(point, |axis, c| {
             // Fibonacci hashing: a chunk's coordinates step by its voxel
             // span, a power of two that would put them all in one slot.
-            let slot = &mut self.warps[axis][((c as u32).wrapping_mul(0x9E37_79B9) >> 26) as usize];
+            let slot = &mut warps[axis][((c as u32).wrapping_mul(0x9E37_79B9) >> 26) as usize];
             if slot.0 != stamp || slot.1 != c {
-                *slot = (stamp, c, sphere.map().warp(f64::from(c) / half));
+                *slot = (stamp, c, sphere.cube_warp(c));
             }
             slot.2
-        };
-        // `SphereMap::direction`'s arithmetic on `cube / half`.
-        let direction = DVec3::new(warp(0, point.cube.x), warp(1, point.cube.y), warp(2, point.cube.z)).normalize();
+        });
         debug_assert_eq!(direction, sphere.column_direction(point));
         direction
     }

@@ -731,7 +731,9 @@ impl ProceduralPlanet {
             // The continents' bounds only narrow as octaves come in (each
             // adds at most the weight `rest` allowed for), so a column
             // whose high end is below the mountains' start stays there; a
-            // millionth spare for rounding.
+            // millionth spare for rounding. A column decided at the last
+            // look (its height no longer NaN) has left `open` and leaves
+            // here too: `ridged` stays within `open`.
             ridged.retain(|&k| {
                 columns[k].height.is_nan() && self.continents.bounds(continents, k).1 > MOUNTAIN_START - 1e-6
             });
