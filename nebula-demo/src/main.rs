@@ -89,6 +89,11 @@ struct Args {
     /// at most 1/30 of the relief].
     #[arg(long = "cave-size", value_name = "M")]
     cave_size: Option<f64>,
+    /// Wavelengths per grid spacing at which noise octaves are read from
+    /// grids, 0 for every octave at every column: the terrain of worlds
+    /// saved before octave grids [default: 16].
+    #[arg(long = "octave-grid", value_name = "RATIO")]
+    octave_grid: Option<f64>,
     /// The planet seed used: --seed or the preset's.
     #[arg(skip)]
     seed: u32,
@@ -335,6 +340,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     if let Some(cave_size) = args.cave_size {
         settings.cave_size = cave_size;
     }
+    if let Some(octave_grid) = args.octave_grid {
+        settings.octave_grid = octave_grid;
+    }
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
     })?;
@@ -433,6 +441,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         "max_lod": layout.max_lod(),
         "seed": s.seed,
         "cave_size": s.cave_size,
+        "octave_grid": s.octave_grid,
         "terrain_version": nebula_voxel::ProceduralPlanet::TERRAIN_VERSION,
         "world": world.store().map(|store| store.path().display().to_string()),
         "unsaved_chunks": world.unsaved_chunks(),

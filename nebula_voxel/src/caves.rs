@@ -395,7 +395,7 @@ impl Caves {
     /// may hold caves at all (the region noise's range over it).
     pub(crate) fn may_be_near(&self, centre: DVec3, reach: f64) -> bool {
         !self.networks.is_empty()
-            && self.region.range_near((centre * self.region_scale).to_array(), reach * self.region_scale).1
+            && self.region.range_near((centre * self.region_scale).to_array(), reach * self.region_scale, &[]).1
                 > REGION_FROM
     }
 

@@ -186,10 +186,18 @@ impl ChunkLayout {
     /// stands in (such voxels are never face neighbours of a chunk's own).
     #[must_use]
     pub fn sample_direction(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> DVec3 {
-        let per_edge = i64::from(self.voxels_per_edge(lod));
-        let (face, ci, cj) =
-            face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)));
+        let (face, ci, cj) = self.sample_cell(face, lod, ci, cj);
         self.sphere.direction(face, self.sample_coord(ci, lod), self.sample_coord(cj, lod))
+    }
+
+    /// The face and voxel column of `lod` whose sample
+    /// [`ChunkLayout::sample_direction`] reads for column `(ci, cj)` of
+    /// `face`: itself on the face, wrapped beyond an edge, the nearest on
+    /// the face in a cube corner's gap.
+    #[must_use]
+    pub fn sample_cell(&self, face: CubeFace, lod: u8, ci: i64, cj: i64) -> (CubeFace, i64, i64) {
+        let per_edge = i64::from(self.voxels_per_edge(lod));
+        face.wrap_cell(ci, cj, per_edge).unwrap_or((face, ci.clamp(0, per_edge - 1), cj.clamp(0, per_edge - 1)))
     }
 
     /// Voxel columns along each face edge at `lod`.

@@ -65,6 +65,7 @@ mod chunk;
 mod edits;
 mod error;
 mod layout;
+mod octave_grid;
 mod perlin;
 mod pick;
 mod planet;

@@ -353,14 +353,23 @@ impl Fractal {
     /// `(1 − |n|)²` falls as `|n|` grows, and scales the next one's weight),
     /// so the bounds cost at most one evaluation and are tight where the
     /// radius is small against the coarse octaves' wavelengths.
+    ///
+    /// `widen[k]` (noise space, 0 where missing) adds to the radius for
+    /// octave `k` alone: the planet reads some octaves from grid nodes up
+    /// to that far from the point ([`crate::octave_grid`]). The ranges
+    /// of the running sum and of the ridged weight bound every state a
+    /// point within reach can carry, so a blend of such states (what a grid
+    /// interpolates) stays within them.
     #[must_use]
-    pub fn range_near(&self, point: [f64; 3], radius: f64) -> (f64, f64) {
+    pub fn range_near(&self, point: [f64; 3], radius: f64, widen: &[f64]) -> (f64, f64) {
         let mut point = point;
         let (mut low, mut high) = (0.0, 0.0);
         let (mut weight_low, mut weight_high) = (1.0_f64, 1.0_f64);
         let mut attenuation = self.first_attenuation();
-        let mut reach = radius * PERLIN_MAX_GRADIENT;
-        for source in &self.sources {
+        let mut frequency = 1.0;
+        for (k, source) in self.sources.iter().enumerate() {
+            let reach = (radius + widen.get(k).copied().unwrap_or(0.0)) * PERLIN_MAX_GRADIENT * frequency;
+            frequency *= self.lacunarity;
             let (noise_low, noise_high) = if reach >= 2.0 {
                 (-1.0, 1.0)
             } else {
@@ -383,7 +392,6 @@ impl Fractal {
             low += term_low * attenuation;
             high += term_high * attenuation;
             point = point.map(|c| c * self.lacunarity);
-            reach *= self.lacunarity;
             attenuation *= self.persistence;
         }
         (self.finish(low), self.finish(high))
@@ -440,6 +448,12 @@ impl Fractal {
         self.sources.len()
     }
 
+    /// Each octave's frequency over the one before.
+    #[must_use]
+    pub fn lacunarity(&self) -> f64 {
+        self.lacunarity
+    }
+
     /// A sum over `points` with no octave in yet: [`Self::step`] adds them
     /// one at a time, for the points still wanted, and [`Self::bounds`]
     /// says how far each sum can still go.
@@ -452,6 +466,40 @@ impl Fractal {
             octave: 0,
             attenuation: self.first_attenuation(),
             rest: self.rest(0),
+        }
+    }
+
+    /// A sum over `points` (at the first octave's frequency) that goes on
+    /// from `states` (one per point) at octave `octave`: [`Self::step`]
+    /// adds the octaves from there. The point's scaling and the octave's
+    /// weight are reached by the same multiplications [`Self::step`]
+    /// makes, so a sum resumed from the states a batch had after `octave`
+    /// octaves ends bit for bit where that batch does.
+    #[must_use]
+    pub fn resume(&self, points: &[[f64; 3]], states: &[OctaveState], octave: usize) -> FractalBatch {
+        let octave = octave.min(self.sources.len());
+        // A power-of-two lacunarity scales exactly: its power at once is
+        // the repeated product (away from overflow and subnormals).
+        let exact = self.lacunarity.log2().fract() == 0.0;
+        let power = (0..octave).fold(1.0, |p, _| p * self.lacunarity);
+        let scaled = points
+            .iter()
+            .map(|&point| {
+                if exact {
+                    point.map(|c| c * power)
+                } else {
+                    (0..octave).fold(point, |p, _| p.map(|c| c * self.lacunarity))
+                }
+            })
+            .collect();
+        let attenuation = (0..octave).fold(self.first_attenuation(), |a, _| a * self.persistence);
+        FractalBatch {
+            points: scaled,
+            sums: states.iter().map(|s| s.sum).collect(),
+            weights: states.iter().map(|s| s.weight).collect(),
+            octave,
+            attenuation,
+            rest: self.rest(octave),
         }
     }
 
@@ -541,6 +589,45 @@ impl FractalBatch {
     #[must_use]
     pub fn done(&self, fractal: &Fractal) -> bool {
         self.octave >= fractal.sources.len()
+    }
+
+    /// The next octave to come.
+    #[must_use]
+    pub fn octave(&self) -> usize {
+        self.octave
+    }
+
+    /// Point `k`'s sum so far, to go on from ([`Fractal::resume`]).
+    #[must_use]
+    pub fn state(&self, k: usize) -> OctaveState {
+        OctaveState { sum: self.sums[k], weight: self.weights[k] }
+    }
+}
+
+/// Where a [`Fractal`] sum stands at one point after some octaves: the
+/// unscaled sum and the weight a ridged sum carries to the next octave
+/// (1 for fBm, which has none). Blends of states are what
+/// [`crate::octave_grid`] interpolates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OctaveState {
+    /// The octaves' terms summed, before [`Fractal`]'s scaling.
+    pub sum: f64,
+    /// The ridged weight for the next octave.
+    pub weight: f64,
+}
+
+impl OctaveState {
+    /// No octave in yet.
+    pub const START: Self = Self { sum: 0.0, weight: 1.0 };
+
+    /// `self + t·(other − self)`, both parts: `self` itself, bit for bit,
+    /// at `t = 0` (a grid node reads as its own state) unless a part is
+    /// −0, which no sum or weight is (they start at +0 and 1, and
+    /// `+0 + −0` is `+0`).
+    #[must_use]
+    #[inline]
+    pub fn lerp(self, other: Self, t: f64) -> Self {
+        Self { sum: self.sum + t * (other.sum - self.sum), weight: self.weight + t * (other.weight - self.weight) }
     }
 }
 
@@ -664,7 +751,7 @@ mod tests {
                 let mut width = 0.0;
                 for _ in 0..200 {
                     let centre = [0.0; 3].map(|_: f64| (next() - 0.5) * 200.0);
-                    let (low, high) = fractal.range_near(centre, radius);
+                    let (low, high) = fractal.range_near(centre, radius, &[]);
                     width += high - low;
                     for _ in 0..20 {
                         // A point in the ball, on its surface half the time.

@@ -360,10 +360,11 @@ fn a_world_knows_its_terrain() {
         txn.commit().unwrap();
     };
     // What format-1 builds wrote: the Debug text of the settings before
-    // `cave_size`, its last field, was added.
-    let heightfield = PlanetSettings { cave_size: 0.0, ..settings.clone() };
-    let format_1_text = |settings: &PlanetSettings| format!("{settings:?}").replace(", cave_size: 0.0 }", " }");
-    assert!(!format_1_text(&heightfield).contains("cave"));
+    // `cave_size` and `octave_grid`, the last fields, were added.
+    let heightfield = PlanetSettings { cave_size: 0.0, octave_grid: 0.0, ..settings.clone() };
+    let format_1_text =
+        |settings: &PlanetSettings| format!("{settings:?}").replace(", cave_size: 0.0, octave_grid: 0.0 }", " }");
+    assert!(!format_1_text(&heightfield).contains("cave") && !format_1_text(&heightfield).contains("octave"));
     write_v1(&path, &format_1_text(&heightfield));
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings.clone(), Some(&path)), Err(WorldError::OtherPlanet { .. })));
@@ -386,7 +387,7 @@ fn a_world_knows_its_terrain() {
     drop(db);
     assert_eq!(World::open(settings.clone(), Some(&path)).unwrap().source().voxel(at).unwrap(), Voxel::SNOW);
     let path = scratch("format-1-other");
-    write_v1(&path, &format_1_text(&PlanetSettings { cave_size: 0.0, ..PlanetSettings::small(4) }));
+    write_v1(&path, &format_1_text(&PlanetSettings { cave_size: 0.0, octave_grid: 0.0, ..PlanetSettings::small(4) }));
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings, Some(&path)), Err(WorldError::OtherPlanet { .. })));
     assert!(std::fs::read(&path).unwrap() == bytes, "a foreign format-1 file was modified");
@@ -1084,8 +1085,8 @@ mod streaming {
 
     #[test]
     fn a_tower_that_adds_a_chunk_layer_keeps_its_column_on_screen() {
-        // A tower 50 voxels tall on the ground in view crosses a chunk
-        // layer boundary: its column gains a layer. The column stays drawn
+        // A tower on the ground in view up to 8 voxels into the chunk layer
+        // above the column's highest: its column gains a layer. The column stays drawn
         // (its old layers) until the new layer is meshed, so no frame draws
         // it, or the face, through a coarse stand-in.
         let settings = PlanetSettings::small(7);
@@ -1112,7 +1113,8 @@ mod streaming {
         let column = layout.chunk_of(layout.voxel_at(ground).unwrap()).column();
         let layers_before = world.source().surface_chunk_layers(column).unwrap();
         let half = DVec3::splat(1.5 * size);
-        let top = ground + up * 50.0 * size;
+        let top_layer = f64::from((layers_before.end() + 1) * nebula_voxel::CHUNK_SIZE as i32 + 8);
+        let top = up * layout.sphere().layer_radius(top_layer);
         let applied = world
             .apply(&[crate::Edit::Box {
                 min: ground.min(top) - half,
