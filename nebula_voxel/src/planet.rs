@@ -143,9 +143,9 @@ pub struct PlanetSettings {
     /// Wavelengths per grid spacing at which a noise octave is read from a
     /// grid on the face lattice instead of evaluated at every voxel column
     /// (`octave_grid.rs`): 16 for new planets (at most 1.9 % of such an
-    /// octave's amplitude off the exact noise, a third of a LOD-0 chunk's
-    /// cost); 0 for every octave at every column, the terrain of the
-    /// planets saved before grids.
+    /// octave's amplitude off the exact noise; a LOD-0 chunk generates
+    /// 1.6× faster); 0 for every octave at every column, the terrain of
+    /// the planets saved before grids.
     pub octave_grid: f64,
 }
 
@@ -192,9 +192,9 @@ impl PlanetSettings {
     /// Settings added since worlds were first saved with canonical
     /// settings, each with the value that gives the planets saved before
     /// it existed: a saved world without such a setting is that value's
-    /// planet, so adding a setting does not lock old saves out. Empty so
-    /// far; a new field goes here with the value that reproduces the
-    /// terrain without it.
+    /// planet, so adding a setting does not lock old saves out. A new
+    /// field goes here with the value that reproduces the terrain without
+    /// it.
     pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] = &[("cave_size", "0.0"), ("octave_grid", "0.0")];
 
     /// The settings as canonical `(name, value)` pairs, sorted by name, for
@@ -336,8 +336,9 @@ struct HeightCache {
     entries: Mutex<HeightEntries>,
     /// H in layers by lattice point `(face, i, j)` where the LOD tree's
     /// column bounds sample it (`column_relief`: at the LOD-0 columns whose
-    /// far corners are each column's corners and centre). A node's children share its corners and centre and each
-    /// other's edges: 8 new points for 4 children instead of 20 (a 12°
+    /// far corners are each column's corners and centre). A node's
+    /// children share its corners and centre and each other's edges: 8
+    /// new points for 4 children instead of 20 (a 12°
     /// lens's tree has 276,000 nodes; full-height samples were 9 % of the
     /// view's CPU time). Emptied when it reaches `HEIGHT_CACHE_POINTS`.
     points: Mutex<HashMap<(CubeFace, i64, i64), f64>>,
@@ -1156,11 +1157,7 @@ impl ProceduralPlanet {
                     (Some(wi), Some(wj)) => sphere.direction_warped(column.face, wi, wj),
                     _ => self.layout.sample_direction(column.face, column.lod, i, j),
                 });
-                samples.push(if (0..per_edge).contains(&i) && (0..per_edge).contains(&j) {
-                    (column.face, [((i + 1) * span_columns - 1) as f64, ((j + 1) * span_columns - 1) as f64])
-                } else {
-                    self.sample_column(column.face, column.lod, i, j)
-                });
+                samples.push(self.sample_column(column.face, column.lod, i, j));
             }
         }
         // The grids' octaves, face by face (a chunk at a face edge has
@@ -1593,8 +1590,9 @@ fn classify_depth(column: Column, depth: f64, span: f64) -> Voxel {
 mod tests {
     use super::*;
 
-    /// The columns a chunk is filled from hold [`ProceduralPlanet::height_at`]
-    /// within their slack, with no voxel or material threshold of their
+    /// The columns a chunk is filled from hold their height (every octave
+    /// in, the grids read as a point between columns reads them) within
+    /// their slack, with no voxel or material threshold of their
     /// LOD in between (so they classify as H does: the voxel-level check is
     /// `filled_chunks_equal_voxels_read_one_by_one`), and bit for bit where
     /// the slack is 0; most coarse columns are decided before the last
