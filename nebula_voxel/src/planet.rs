@@ -1682,4 +1682,33 @@ mod tests {
         let (p99, largest) = deviations(0.01);
         assert!(p99 >= 0.1 || largest >= 0.5, "every octave from 16-column grids should show: {p99}, {largest}");
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// A LOD-0 column read as the far-corner column of a coarser LOD
+        /// has the same height bit for bit (the grids finer than that LOD
+        /// evaluated at it, as its nodes; `octave_grid.rs`), on any face,
+        /// near its edges too; and `height_at` through the inverse map at
+        /// the column's centre agrees to a millionth of a layer.
+        #[test]
+        fn a_column_reads_the_same_at_every_lod(
+            face in 0usize..6,
+            (a, b) in (0.0f64..1.0, 0.0f64..1.0),
+            lod in 1u8..7,
+        ) {
+            let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+            let face = CubeFace::ALL[face];
+            let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
+            let (ci, cj) = ((a * per_edge as f64) as i64, (b * per_edge as f64) as i64);
+            let span = planet.layout.voxel_span(lod);
+            let (i, j) = ((ci + 1) * span - 1, (cj + 1) * span - 1);
+            let coarse = planet.column(face, lod, ci, cj).height;
+            let fine = planet.column(face, 0, i, j).height;
+            proptest::prop_assert_eq!(coarse.to_bits(), fine.to_bits(), "LOD {} against LOD 0", lod);
+            let direction = planet.layout.sample_direction(face, 0, i, j);
+            let between = planet.height_at(direction) / planet.layer_height;
+            proptest::prop_assert!((between - fine).abs() < 1e-6, "height_at {} against {}", between, fine);
+        }
+    }
 }
