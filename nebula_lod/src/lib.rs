@@ -64,7 +64,7 @@ pub use bounds::{CullMargin, Frustum, Horizon, NodeBounds};
 pub use nebula_math::FaceDirection;
 pub use relation::{ChunkLodContext, NeighborLodRelation};
 pub use settings::{BalanceMode, Camera, LodError, LodSettings};
-pub use tree::{LodChanges, LodStats, LodTree, children, parent};
+pub use tree::{Cull, LodChanges, LodStats, LodTree, children, parent};
 
 #[cfg(test)]
 mod tests;

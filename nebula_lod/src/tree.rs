@@ -85,6 +85,15 @@ struct Node {
     generation: u32,
 }
 
+/// What a cull found ([`LodTree::cull_result`]): the leaves in view, with
+/// their bounds, and the camera and margin they were culled for.
+#[derive(Clone, Debug)]
+pub struct Cull {
+    visible: Vec<ChunkColumn>,
+    visible_bounds: Vec<NodeBounds>,
+    culled: Option<(Camera, CullMargin)>,
+}
+
 /// The LOD selection of a whole planet: one quadtree per cube face.
 #[derive(Clone)]
 pub struct LodTree {
@@ -1009,6 +1018,25 @@ impl LodTree {
         self.stats.visible_leaves = kept;
         self.culled = Some((*camera, CullMargin::default()));
         Ok(())
+    }
+
+    /// The last cull's result ([`LodTree::cull_with_margin`] or
+    /// [`LodTree::narrow_cull`]): the visible leaves, their bounds and the
+    /// camera they were culled for, to put onto another copy of this tree
+    /// ([`LodTree::set_cull`]) instead of copying the whole tree (an
+    /// Earth's tree through a narrow lens has some 276,000 nodes).
+    #[must_use]
+    pub fn cull_result(&self) -> Cull {
+        Cull { visible: self.visible.clone(), visible_bounds: self.visible_bounds.clone(), culled: self.culled }
+    }
+
+    /// Takes `cull` as this tree's last cull. Only for a cull made on a
+    /// copy of this very tree, its nodes unchanged since it was copied
+    /// (the caller keeps track; nothing here can check it cheaply): the
+    /// leaves and bounds are taken as they are.
+    pub fn set_cull(&mut self, cull: Cull) {
+        self.stats.visible_leaves = cull.visible.len();
+        (self.visible, self.visible_bounds, self.culled) = (cull.visible, cull.visible_bounds, cull.culled);
     }
 
     /// Whether the visible leaves hold every leaf `camera` sees: the last

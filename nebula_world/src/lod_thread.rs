@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex};
 
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, CullMargin, LodTree};
+use nebula_lod::{Camera, Cull, CullMargin, LodTree};
 use nebula_voxel::{ChunkColumn, ChunkKey, VoxelSource};
 
 use crate::select::{Plan, SelectInput, SelectSettings, Selection, plan};
@@ -73,8 +73,10 @@ pub(crate) struct SelectRequest<H> {
 /// What the frame thread asks of the LOD thread, in order.
 enum Request<S, H> {
     /// Update and cull the tree for `camera` with `margin`, plan the
-    /// selection on it, and send a copy and the plan.
-    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin, select: Box<SelectRequest<H>> },
+    /// selection on it, and send a copy (or the cull alone, when the frame
+    /// thread holds copy `holding` and the tree has not changed since it
+    /// was sent) and the plan.
+    Update { voxels: Arc<S>, camera: Camera, margin: CullMargin, holding: Option<u64>, select: Box<SelectRequest<H>> },
     /// Re-read the bounds of edited columns.
     Refresh { voxels: Arc<S>, columns: Vec<ChunkColumn> },
     /// A new threshold, screen height or field of view.
@@ -83,13 +85,24 @@ enum Request<S, H> {
     Replace(Box<LodTree>),
 }
 
+/// The tree an update made, as the LOD thread sends it.
+pub(crate) enum MadeTree {
+    /// A copy of the whole tree, numbered.
+    Whole(Box<LodTree>, u64),
+    /// The cull alone, for the numbered copy the frame thread said it
+    /// holds: the tree has not changed since that copy was sent. (Copying
+    /// a narrow lens's tree of 276,000 nodes for every update of a still
+    /// view was a tenth of the CPU of settling it.)
+    Cull(Cull, u64),
+}
+
 /// What the LOD thread sends back for an update.
 pub(crate) struct Outcome<H> {
     /// The tree updated and culled for the asked camera (whether its
     /// leaves changed went into the selection's state); `None`: the update
     /// failed (a refused camera, a failing voxel source), and the frame
     /// thread updates its own tree and reports what it finds.
-    pub(crate) tree: Option<Box<LodTree>>,
+    pub(crate) tree: Option<MadeTree>,
     /// Tree-changing requests applied before the update.
     commands: u64,
     /// The selection's state sent with the request (`None` once the
@@ -109,6 +122,11 @@ pub(crate) struct LodThread<S, H> {
     commands: u64,
     /// An update asked for whose outcome has not come.
     in_flight: bool,
+    /// The numbered copy the frame thread's tree is, while it is one
+    /// ([`LodThread::hold`]; a tree-changing request ends it).
+    holding: Option<u64>,
+    /// Whole trees received so far.
+    copies: u64,
 }
 
 impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
@@ -121,14 +139,15 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             lower_priority();
             serve(tree, &inbox, &outbox);
         })?;
-        Ok(Self { requests, outcomes: Mutex::new(outcomes), commands: 0, in_flight: false })
+        Ok(Self { requests, outcomes: Mutex::new(outcomes), commands: 0, in_flight: false, holding: None, copies: 0 })
     }
 
     /// Asks for the tree of `camera`, culled with `margin`, and for the
     /// selection planned on it (a still camera's too: the plan follows the
     /// meshes that come).
     pub(crate) fn ask(&mut self, voxels: &Arc<S>, camera: Camera, margin: CullMargin, select: SelectRequest<H>) {
-        let request = Request::Update { voxels: voxels.clone(), camera, margin, select: Box::new(select) };
+        let request =
+            Request::Update { voxels: voxels.clone(), camera, margin, holding: self.holding, select: Box::new(select) };
         if self.requests.send((request, self.commands)).is_ok() {
             self.in_flight = true;
         }
@@ -142,7 +161,26 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             return None;
         }
         self.in_flight = false;
-        self.outcomes.get_mut().ok()?.recv().ok()
+        let outcome = self.outcomes.get_mut().ok()?.recv().ok()?;
+        self.copies += u64::from(matches!(outcome.tree, Some(MadeTree::Whole(..))));
+        Some(outcome)
+    }
+
+    /// The frame thread's tree is now copy `copy` (a whole tree it took),
+    /// or no copy the thread sent (`None`).
+    pub(crate) fn hold(&mut self, copy: Option<u64>) {
+        self.holding = copy;
+    }
+
+    /// The numbered copy the frame thread's tree is, if it is one.
+    pub(crate) fn holding(&self) -> Option<u64> {
+        self.holding
+    }
+
+    /// Whole trees received so far (the rest of the updates sent their
+    /// cull alone).
+    pub(crate) fn copies(&self) -> u64 {
+        self.copies
     }
 
     /// Whether `outcome` was made after every tree-changing request sent
@@ -168,6 +206,8 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
 
     fn command(&mut self, request: Request<S, H>) {
         self.commands += 1;
+        // Both trees change: neither is a copy sent before.
+        self.holding = None;
         // A closed channel (the thread gone) leaves the frame thread to
         // update its own tree, as without one.
         let _ = self.requests.send((request, self.commands));
@@ -195,32 +235,38 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
     outbox: &Sender<Outcome<H>>,
 ) {
     let mut commands = 0;
+    // The number of the last whole copy sent, while the tree is unchanged
+    // since; the next number.
+    let (mut sent, mut next_copy): (Option<u64>, u64) = (None, 0);
     while let Ok(first) = inbox.recv() {
         // At most one update is in flight: the frame thread takes each
         // outcome before it asks again.
         let mut update = None;
         for (request, sequence) in std::iter::once(first).chain(inbox.try_iter()) {
             match request {
-                Request::Update { voxels, camera, margin, select } => {
-                    update = Some((voxels, camera, margin, select));
+                Request::Update { voxels, camera, margin, holding, select } => {
+                    update = Some((voxels, camera, margin, holding, select));
                 }
                 Request::Refresh { voxels, columns } => {
                     commands = sequence;
+                    sent = None;
                     // A failing source leaves these bounds old here as on
                     // the frame thread, which reports it.
                     let _ = tree.refresh_bounds(&*voxels, columns);
                 }
                 Request::SetView { threshold_px, screen_height_px, fov_y_degrees } => {
                     commands = sequence;
+                    sent = None;
                     let _ = tree.set_view(threshold_px, screen_height_px, fov_y_degrees);
                 }
                 Request::Replace(replacement) => {
                     commands = sequence;
+                    sent = None;
                     tree = *replacement;
                 }
             }
         }
-        let Some((voxels, camera, margin, select)) = update else { continue };
+        let Some((voxels, camera, margin, holding, select)) = update else { continue };
         let updated = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             let changes = tree.update(&*voxels, &camera)?;
             tree.cull_with_margin(&camera, margin)?;
@@ -264,8 +310,18 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
         // Let go of the columns before the frame thread can have the plan:
         // it changes them as soon as it does.
         drop(columns);
-        let outcome =
-            Outcome { tree: changed.map(|_| Box::new(tree.clone())), commands, selection: Some(selection), plan };
+        if changed != Some(false) {
+            sent = None;
+        }
+        let made = changed.map(|_| match sent {
+            Some(copy) if holding == Some(copy) => MadeTree::Cull(tree.cull_result(), copy),
+            _ => {
+                next_copy += 1;
+                sent = Some(next_copy);
+                MadeTree::Whole(Box::new(tree.clone()), next_copy)
+            }
+        });
+        let outcome = Outcome { tree: made, commands, selection: Some(selection), plan };
         if outbox.send(outcome).is_err() {
             return;
         }

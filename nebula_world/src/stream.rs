@@ -83,7 +83,7 @@ use nebula_meshing::{
 };
 use nebula_voxel::{ChunkColumn, ChunkKey, CubeFace, LayerView, VoxelSource};
 
-use crate::lod_thread::{LodThread, Outcome, SelectRequest};
+use crate::lod_thread::{LodThread, MadeTree, Outcome, SelectRequest};
 use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
 use crate::select::{
@@ -1411,11 +1411,31 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// cull covers `camera`; `None` when it cannot serve (not covered,
     /// failed, or made before a change).
     fn take_made_ahead(&mut self, outcome: Outcome<H>, camera: &Camera) -> Option<Option<Plan<H>>> {
-        let current = self.lod_thread.as_ref().is_some_and(|thread| thread.is_current(&outcome));
-        let mut tree = outcome.tree.filter(|_| current)?;
+        let thread = self.lod_thread.as_mut()?;
+        if !thread.is_current(&outcome) {
+            return None;
+        }
         // Its cull, made with a margin, narrowed to this camera's view.
-        tree.narrow_cull(camera).ok()?;
-        self.tree = *tree;
+        match outcome.tree? {
+            MadeTree::Whole(mut tree, copy) => {
+                tree.narrow_cull(camera).ok()?;
+                self.tree = *tree;
+                thread.hold(Some(copy));
+            }
+            MadeTree::Cull(cull, copy) => {
+                // Made on the copy this tree is (the thread sends a cull
+                // alone only for the copy the request said it holds).
+                if thread.holding() != Some(copy) {
+                    return None;
+                }
+                let own = self.tree.cull_result();
+                self.tree.set_cull(cull);
+                if self.tree.narrow_cull(camera).is_err() {
+                    self.tree.set_cull(own);
+                    return None;
+                }
+            }
+        }
         self.culled_for = Some(*camera);
         Some(outcome.plan)
     }
@@ -1655,6 +1675,14 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn lod_thread_frames(&self) -> (u64, u64) {
         self.lod_frames
+    }
+
+    /// Whole copies of the LOD tree the LOD thread has sent back; its
+    /// other outcomes carried the cull alone (the tree had not changed
+    /// since the copy the frame thread holds).
+    #[must_use]
+    pub fn lod_tree_copies(&self) -> u64 {
+        self.lod_thread.as_ref().map_or(0, LodThread::copies)
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty

@@ -1084,6 +1084,38 @@ mod streaming {
     }
 
     #[test]
+    fn a_still_view_gets_the_cull_alone_once_its_tree_stands() {
+        // The LOD thread sends a whole copy of its tree only when the tree
+        // changed since the copy the frame thread holds: a still camera
+        // over a settled tree gets its cull (and plan) alone, every frame
+        // still taking what the thread made.
+        let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = world.source().base().surface_point(up);
+        let eye = ground + up * 30.0 - up.any_orthonormal_vector() * 80.0;
+        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+        for frames in 0.. {
+            streamer.update(camera, &mut { upload });
+            if streamer.settled() && frames > 20 {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(frames < 20_000, "did not settle");
+        }
+        let (copies, (taken, _)) = (streamer.lod_tree_copies(), streamer.lod_thread_frames());
+        assert!(copies >= 1, "no tree came from the LOD thread");
+        for _ in 0..50 {
+            streamer.update(camera, &mut { upload });
+        }
+        let (taken_after, _) = streamer.lod_thread_frames();
+        assert!(taken_after >= taken + 45, "the thread's work served {} of 50 still frames", taken_after - taken);
+        assert_eq!(streamer.lod_tree_copies(), copies, "a still view's tree was copied again");
+    }
+
+    #[test]
     fn a_tower_that_adds_a_chunk_layer_keeps_its_column_on_screen() {
         // A tower on the ground in view up to 8 voxels into the chunk layer
         // above the column's highest: its column gains a layer. The column stays drawn
