@@ -100,6 +100,12 @@ impl OctaveLevels {
         &self.reach
     }
 
+    /// Whether no octave is read from a grid coarser than `spacing`: a
+    /// column of that spacing is the exact noise's.
+    pub(crate) fn exact_at(&self, spacing: i64) -> bool {
+        self.levels.first().is_none_or(|&(coarsest, _)| coarsest <= spacing)
+    }
+
     /// The first octave not read from a grid coarser than `spacing`.
     fn start_below(&self, spacing: i64) -> usize {
         self.levels.iter().take_while(|&&(s, _)| s > spacing).last().map_or(0, |&(_, end)| end)

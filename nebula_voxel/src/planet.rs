@@ -654,6 +654,15 @@ impl ProceduralPlanet {
         directions: &[nebula_math::DVec3],
         spacing: i64,
     ) -> Vec<[f64; 3]> {
+        // Every octave direct (a node of every grid, the LOD tree's bound
+        // samples among them): the sums as `Fractal::get` gives them, bit
+        // for bit what the batches would.
+        if self.levels.iter().all(|levels| levels.exact_at(spacing)) {
+            return directions
+                .iter()
+                .map(|d| self.gridded().map(|sum| sum.fractal.get((*d * sum.scale).to_array())))
+                .collect();
+        }
         let resumed = grid_states(self.layout.sphere(), face, self.gridded(), points, spacing);
         let mut sums = vec![[0.0; 3]; points.len()];
         let all: Vec<usize> = (0..points.len()).collect();
