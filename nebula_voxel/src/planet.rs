@@ -711,13 +711,16 @@ impl ProceduralPlanet {
     /// on `face` ([`Self::sum_ranges`]).
     fn patch_ball(&self, face: CubeFace, (i, j): (f64, f64), half: f64) -> (nebula_math::DVec3, f64) {
         let sphere = self.layout.sphere();
-        let centre = sphere.direction(face, i, j);
+        // The nine points share three warped coordinates along each axis:
+        // six `tan`s, not eighteen (they were a tenth of a narrow lens's
+        // first frame). Index 1 is the centre's (`i + 0·half` is `i`).
+        let warped = |c: f64| [-1.0, 0.0, 1.0].map(|a: f64| sphere.warp(c + a * half));
+        let (warped_i, warped_j) = (warped(i), warped(j));
+        let centre = sphere.direction_warped(face, warped_i[1], warped_j[1]);
         // The largest angle is the smallest cosine: one `acos`, not eight.
         let mut cosine = 1.0_f64;
-        for (a, b) in
-            [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0)]
-        {
-            cosine = cosine.min(centre.dot(sphere.direction(face, i + a * half, j + b * half)));
+        for (a, b) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 0), (1, 2), (0, 1), (2, 1)] {
+            cosine = cosine.min(centre.dot(sphere.direction_warped(face, warped_i[a], warped_j[b])));
         }
         // A chord is shorter than its angle; 1 % more for rounding.
         (centre, cosine.clamp(-1.0, 1.0).acos() * 1.01)
