@@ -1083,6 +1083,33 @@ mod streaming {
         assert!(control.coarsest > crate::stream::STAND_IN_LEVEL_STEP, "the control did not flash");
     }
 
+    /// A streamer of `world` (the small planet) settled, and past `frames`
+    /// frames, for a still camera 30 m over a ground point and 80 m to its
+    /// side, looking `lift` metres over the point; the camera and the
+    /// ground point.
+    fn settled_over_the_ground(
+        world: &crate::World,
+        lift: f64,
+        frames: u32,
+    ) -> (Streamer<nebula_voxel::EditedSource<ProceduralPlanet>, Sized>, Camera, DVec3) {
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = world.source().base().surface_point(up);
+        let eye = ground + up * 30.0 - up.any_orthonormal_vector() * 80.0;
+        let camera = Camera { position: eye, forward: ground + up * lift - eye, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+        for done in 0.. {
+            streamer.update(camera, &mut { upload });
+            if streamer.settled() && done > frames {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(done < 20_000, "did not settle");
+        }
+        (streamer, camera, ground)
+    }
+
     #[test]
     fn a_still_view_gets_the_cull_alone_once_its_tree_stands() {
         // The LOD thread sends a whole copy of its tree only when the tree
@@ -1090,21 +1117,8 @@ mod streaming {
         // over a settled tree gets its cull (and plan) alone, every frame
         // still taking what the thread made.
         let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
-        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
-        let ground = world.source().base().surface_point(up);
-        let eye = ground + up * 30.0 - up.any_orthonormal_vector() * 80.0;
-        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let (mut streamer, camera, _) = settled_over_the_ground(&world, 0.0, 20);
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
-        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
-        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
-        for frames in 0.. {
-            streamer.update(camera, &mut { upload });
-            if streamer.settled() && frames > 20 {
-                break;
-            }
-            std::thread::sleep(std::time::Duration::from_millis(2));
-            assert!(frames < 20_000, "did not settle");
-        }
         let (copies, (taken, _)) = (streamer.lod_tree_copies(), streamer.lod_thread_frames());
         assert!(copies >= 1, "no tree came from the LOD thread");
         for _ in 0..50 {
@@ -1121,25 +1135,12 @@ mod streaming {
         // above the column's highest: its column gains a layer. The column stays drawn
         // (its old layers) until the new layer is meshed, so no frame draws
         // it, or the face, through a coarse stand-in.
-        let settings = PlanetSettings::small(7);
-        let mut world = crate::World::open(settings, None).unwrap();
-        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
-        let ground = world.source().base().surface_point(up);
+        let mut world = crate::World::open(PlanetSettings::small(7), None).unwrap();
+        // Settled past the cache's ageing too.
+        let (mut streamer, camera, ground) = settled_over_the_ground(&world, 20.0, 310);
+        let up = ground.normalize();
         let size = world.source().base().voxel_size();
-        let side = up.any_orthonormal_vector();
-        let eye = ground + up * 30.0 - side * 80.0;
-        let camera = Camera { position: eye, forward: ground + up * 20.0 - eye, up, aspect: 1.6 };
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
-        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
-        let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
-        for frames in 0.. {
-            streamer.update(camera, &mut { upload });
-            if streamer.settled() && frames > 310 {
-                break; // past the cache's ageing too
-            }
-            std::thread::sleep(std::time::Duration::from_millis(2));
-            assert!(frames < 20_000, "did not settle");
-        }
         let before = streamer.figures().triangles;
         let layout = world.source().layout();
         let column = layout.chunk_of(layout.voxel_at(ground).unwrap()).column();
