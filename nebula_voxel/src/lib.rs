@@ -30,8 +30,12 @@
 //! - **Noise**: the `noise` crate's fBm and ridged multifractal, evaluated
 //!   on the sphere so terrain is seamless across faces, over our own
 //!   branch-free Perlin kernel that returns the `noise` crate's values
-//!   (2.3× faster where samples are far apart; see `perlin.rs`). Heights
-//!   are computed once per chunk column and shared by its radial layers.
+//!   (2.3× faster where samples are far apart; see `perlin.rs`). Octaves
+//!   many voxels long are read from grids on the face lattice instead of
+//!   at every column (`octave_grid.rs`, `PlanetSettings::octave_grid`; 0
+//!   for the exact noise of planets saved before), the same at every LOD.
+//!   Heights are computed once per chunk column and shared by its radial
+//!   layers.
 //!
 //! Generation speed: `cargo bench -p nebula_voxel` (figures in the bench
 //! file's header).
