@@ -60,7 +60,7 @@ use crate::perlin::{Fractal, OctaveState};
 pub(crate) const MAX_SPACING: i64 = 16;
 
 /// Which octaves of one noise sum come from which grid.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub(crate) struct OctaveLevels {
     /// `(spacing, end)`: the grid's spacing in LOD-0 columns (> 1) and the
     /// octave after its last; coarsest first, each grid one or more

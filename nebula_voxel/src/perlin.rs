@@ -459,14 +459,7 @@ impl Fractal {
     /// says how far each sum can still go.
     #[must_use]
     pub fn begin(&self, points: &[[f64; 3]]) -> FractalBatch {
-        FractalBatch {
-            points: points.to_vec(),
-            sums: vec![0.0; points.len()],
-            weights: vec![1.0; points.len()],
-            octave: 0,
-            attenuation: self.first_attenuation(),
-            rest: self.rest(0),
-        }
+        self.resume(points, &vec![OctaveState::START; points.len()], 0)
     }
 
     /// A sum over `points` (at the first octave's frequency) that goes on

@@ -84,37 +84,35 @@ impl Terrain {
     #[must_use]
     pub fn of_planet(settings: &PlanetSettings) -> Self {
         let owned = |pairs: Vec<(&str, String)>| pairs.into_iter().map(|(n, v)| (n.to_owned(), v)).collect();
+        let canonical = settings.canonical();
+        let value = |name: &str| canonical.iter().find(|(n, _)| *n == name).map_or("", |(_, v)| v.as_str());
+        let before_added_settings = PlanetSettings::ADDED_SETTINGS.iter().all(|&(name, old)| value(name) == old);
         Self {
             generator: "nebula_voxel::ProceduralPlanet".into(),
             version: ProceduralPlanet::TERRAIN_VERSION,
-            settings: owned(settings.canonical()),
+            settings: owned(canonical.clone()),
             added_settings: owned(PlanetSettings::ADDED_SETTINGS.iter().map(|&(n, v)| (n, v.to_owned())).collect()),
             // Format 1 keyed worlds by the settings' Debug text (of the
-            // fields it had: a planet without caves or octave grids); the terrain code did
-            // not change between the last format-1 build and terrain
-            // version 1.
-            legacy: (ProceduralPlanet::TERRAIN_VERSION == 1
-                && settings.cave_size == 0.0
-                && settings.octave_grid == 0.0)
-                .then(|| {
-                    // The derived Debug text of the fields format 1 knew, in
-                    // their order (canonical values are Debug's: `{:?}` of each
-                    // f64, the seed's digits).
-                    const FORMAT_1_FIELDS: [&str; 8] = [
-                        "radius",
-                        "voxel_size",
-                        "amplitude",
-                        "feature_size",
-                        "mountain_size",
-                        "detail_amplitude",
-                        "detail_size",
-                        "seed",
-                    ];
-                    let canonical = settings.canonical();
-                    let value = |name: &str| canonical.iter().find(|(n, _)| *n == name).map_or("", |(_, v)| v.as_str());
-                    let fields: Vec<String> = FORMAT_1_FIELDS.iter().map(|n| format!("{n}: {}", value(n))).collect();
-                    format!("PlanetSettings {{ {} }}", fields.join(", "))
-                }),
+            // fields it had: every setting added since at the value that
+            // gives the planets from before it); the terrain code did not
+            // change between the last format-1 build and terrain version 1.
+            legacy: (ProceduralPlanet::TERRAIN_VERSION == 1 && before_added_settings).then(|| {
+                // The derived Debug text of the fields format 1 knew, in
+                // their order (canonical values are Debug's: `{:?}` of each
+                // f64, the seed's digits).
+                const FORMAT_1_FIELDS: [&str; 8] = [
+                    "radius",
+                    "voxel_size",
+                    "amplitude",
+                    "feature_size",
+                    "mountain_size",
+                    "detail_amplitude",
+                    "detail_size",
+                    "seed",
+                ];
+                let fields: Vec<String> = FORMAT_1_FIELDS.iter().map(|n| format!("{n}: {}", value(n))).collect();
+                format!("PlanetSettings {{ {} }}", fields.join(", "))
+            }),
         }
     }
 
