@@ -139,6 +139,10 @@ struct Args {
     /// Draw LOD seams without skirts (for debugging: they open).
     #[arg(long)]
     no_skirts: bool,
+    /// Draw in detail what the ground in front hides (for comparing: the
+    /// picture is the same, from more triangles).
+    #[arg(long)]
+    no_terrain_occlusion: bool,
     /// How seams between LODs are closed: skirts, constrained or stitched
     /// (`nebula_world::seams`).
     #[arg(long, value_name = "STRATEGY", default_value = "skirts")]
@@ -465,7 +469,12 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
 }
 
 fn draw_options(args: &Args) -> DrawOptions {
-    DrawOptions { skirts: !args.no_skirts, morph: args.morph.into(), ..DrawOptions::default() }
+    DrawOptions {
+        skirts: !args.no_skirts,
+        morph: args.morph.into(),
+        terrain_occlusion: !args.no_terrain_occlusion,
+        ..DrawOptions::default()
+    }
 }
 
 /// The streamer and renderer options the command line sets.

@@ -20,6 +20,9 @@ pub struct NodeBounds {
     /// Largest angle (radians) between `center_direction` and a point of
     /// the patch.
     pub angular_radius: f64,
+    /// Largest angle (radians) of a disc around `center_direction` inside
+    /// the patch: the nearest of its four sides (great circles).
+    pub inner_angular_radius: f64,
     /// Lowest surface radius in the node, metres.
     pub min_radius: f64,
     /// Highest surface radius in the node, metres.
@@ -59,6 +62,13 @@ impl NodeBounds {
             }
         }
         let angular_radius = radius_cosine.clamp(-1.0, 1.0).acos();
+        // The sides are great circles (one lattice coordinate held): the
+        // disc reaches the nearest one's plane.
+        let corners = [direction(0.0, 0.0), direction(1.0, 0.0), direction(1.0, 1.0), direction(0.0, 1.0)];
+        let nearest_side_sine = (0..4)
+            .map(|k| center_direction.dot(corners[k].cross(corners[(k + 1) % 4]).normalize()).abs())
+            .fold(1.0_f64, f64::min);
+        let inner_angular_radius = nearest_side_sine.asin();
         let spacing = spacing_cosine.clamp(-1.0, 1.0).acos();
         let bulge = surface.max_radius * (1.0 - (spacing / 2.0).cos());
         Self {
@@ -66,6 +76,7 @@ impl NodeBounds {
             max: max + DVec3::splat(bulge),
             center_direction,
             angular_radius,
+            inner_angular_radius,
             min_radius: surface.min_radius,
             max_radius: surface.max_radius,
         }

@@ -28,7 +28,10 @@
 //!   computed against a missing chunk. That culling is conservative (the
 //!   planet-wide lowest bound, hundreds of kilometres deep on an Earth);
 //!   [`LodTree::horizon_occluder`] gives the terrain's real horizon, behind
-//!   which a renderer draws leaves coarse instead of meshing them.
+//!   which a renderer draws leaves coarse instead of meshing them, and
+//!   [`TerrainHorizon`] the ground's horizon bearing by bearing, made of
+//!   the floors of the leaves in front (a far plain behind its own
+//!   horizon, a valley behind a ridge).
 //! - **Incremental by distance margins**: a node's decision can only flip
 //!   after the camera has travelled its margin to the split or merge
 //!   distance, so only due nodes are evaluated (see `tree` docs);
@@ -56,12 +59,14 @@
 //! ```
 
 mod bounds;
+mod occlusion;
 mod relation;
 mod settings;
 mod tree;
 
 pub use bounds::{CullMargin, Frustum, Horizon, NodeBounds};
 pub use nebula_math::FaceDirection;
+pub use occlusion::TerrainHorizon;
 pub use relation::{ChunkLodContext, NeighborLodRelation};
 pub use settings::{BalanceMode, Camera, LodError, LodSettings};
 pub use tree::{Cull, LodChanges, LodStats, LodTree, children, parent};

@@ -643,6 +643,7 @@ proptest! {
             max: DVec3::ZERO,
             center_direction,
             angular_radius,
+            inner_angular_radius: angular_radius / 2.0,
             min_radius: 1.0 + heights.0.min(heights.1),
             max_radius,
         };
@@ -746,4 +747,116 @@ fn a_shaft_dug_under_the_horizon_sphere_lowers_it() {
         checked += 1;
     }
     assert!(checked >= 4, "only {checked} views over land");
+}
+
+/// Whether the segment from `eye` to `target` runs through a solid LOD-0
+/// voxel of `earth`: marched in steps no larger than the ground can rise
+/// to meet it (the slope bound), each point half a metre or more under the
+/// ground's height read as a voxel (caves are air).
+fn blocked_at_lod_0(earth: &ProceduralPlanet, eye: DVec3, target: DVec3) -> bool {
+    let layout = earth.layout();
+    let radius = earth.settings().radius;
+    // Metres the ground rises per metre along, and the line itself.
+    let rise = 1.5 * earth.max_slope() + 1.0;
+    let (along, length) = ((target - eye).normalize(), (target - eye).length());
+    let mut t = 0.0;
+    while t < length {
+        let point = eye + along * t;
+        let gap = point.length() - (radius + earth.height_at(point.normalize()));
+        if gap < -0.5 && earth.voxel(layout.voxel_at(point).unwrap()).unwrap().is_solid() {
+            return true;
+        }
+        t += (gap.abs() / rise).max(0.5);
+    }
+    false
+}
+
+/// From random eyes 10 m to 2 km over an Earth's land (fixed seed; a 12°
+/// lens and a 60° view; half of them planned for every eye within 30 m),
+/// every leaf in view that the ground in front hides ([`TerrainHorizon`],
+/// made of the leaves in view, each with its bounds' floor; a far leaf's
+/// top from [`VoxelSource::surface_top_radius`] as a streamer reads it) is
+/// hidden at LOD 0: the segment from the eye, or from an eye moved within
+/// the margin, to random points of the leaf's patch between its floor and
+/// top runs through rock. Control: floors raised by 40 m hide leaves that
+/// an eye sees.
+#[test]
+fn the_ground_in_front_hides_only_what_rock_hides() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    let layout = *earth.layout();
+    let mut state = 91_u64;
+    let mut random = || nebula_math::unit_random(&mut state);
+    let (mut hidden_total, mut checked, mut control_hidden, mut control_seen) = (0, 0, 0, 0);
+    for view in 0..8 {
+        let dir = loop {
+            let dir = DVec3::new(random() - 0.5, random() - 0.5, 0.7 * (random() - 0.5)).normalize();
+            if earth.height_at(dir) > 5.0 {
+                break dir;
+            }
+        };
+        let height = [10.0, 2_000.0, 300.0, 30.0, 1_000.0, 100.0, 500.0, 50.0][view];
+        let eye = dir * (earth.settings().radius + earth.height_at(dir) + height);
+        let east = dir.any_orthonormal_vector();
+        let bearing = random() * std::f64::consts::TAU;
+        let level = east * bearing.cos() + dir.cross(east) * bearing.sin();
+        let forward = level - dir * (random() * 0.1);
+        let fov = if view % 2 == 0 { 12.0 } else { 60.0 };
+        let margin = if view % 4 < 2 { 0.0 } else { 30.0 };
+        let settings =
+            LodSettings { threshold_px: 1.0, screen_height_px: 400.0, fov_y_degrees: fov, ..LodSettings::default() };
+        let mut tree = LodTree::new(&earth, settings).unwrap();
+        let camera = Camera { position: eye, forward, up: dir, aspect: 1.6 };
+        tree.update(&earth, &camera).unwrap();
+        tree.cull(&camera).unwrap();
+        let leaves: Vec<(ChunkColumn, NodeBounds)> = tree.visible_leaves_with_bounds().map(|(c, b)| (c, *b)).collect();
+        let horizon =
+            |lift: f64| TerrainHorizon::new(eye, margin, leaves.iter().map(|(_, b)| (*b, b.min_radius + lift)));
+        // As a streamer judges: the bounds, then the tight top where the
+        // floor alone would be hidden.
+        let hidden = |terrain: &TerrainHorizon| -> Vec<(ChunkColumn, NodeBounds)> {
+            leaves
+                .iter()
+                .filter_map(|&(column, bounds)| {
+                    if terrain.hides(&bounds) {
+                        return Some((column, bounds));
+                    }
+                    if !terrain.hides(&NodeBounds { max_radius: bounds.min_radius, ..bounds }) {
+                        return None;
+                    }
+                    let top = earth.surface_top_radius(column).unwrap().min(bounds.max_radius);
+                    let tight = NodeBounds { max_radius: top, ..bounds };
+                    terrain.hides(&tight).then_some((column, tight))
+                })
+                .collect()
+        };
+        // Random points of a leaf's patch between its floor and top, seen
+        // from the eye moved within the margin.
+        let mut seen = |column: ChunkColumn, bounds: &NodeBounds| {
+            let size = f64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(column.lod) as f64;
+            let (u, v) = ((f64::from(column.x) + random()) * size, (f64::from(column.y) + random()) * size);
+            let point = layout.sphere().direction(column.face, u, v)
+                * (bounds.min_radius + random() * (bounds.max_radius - bounds.min_radius));
+            let moved = DVec3::new(random() - 0.5, random() - 0.5, random() - 0.5).normalize() * margin * random();
+            !blocked_at_lod_0(&earth, eye + moved, point)
+        };
+        let found = hidden(&horizon(0.0));
+        hidden_total += found.len();
+        // Every hidden leaf of a few views, a sample of the others'.
+        for (column, bounds) in found.iter().step_by(1 + found.len() / 60) {
+            for _ in 0..2 {
+                assert!(!seen(*column, bounds), "view {view}: {column:?} hidden but seen from {eye}");
+                checked += 1;
+            }
+        }
+        let raised = hidden(&horizon(100.0));
+        let extra: Vec<_> = raised.iter().filter(|(c, _)| !found.iter().any(|(f, _)| f == c)).collect();
+        control_hidden += extra.len();
+        control_seen += extra.iter().step_by(1 + extra.len() / 60).filter(|(c, b)| (0..3).any(|_| seen(*c, b))).count();
+    }
+    println!(
+        "{hidden_total} leaves hidden over 8 views, {checked} points of them checked blocked; floors 100 m higher hide \
+         {control_hidden} more, {control_seen} of those checked are seen"
+    );
+    assert!(hidden_total > 500, "too few hidden leaves to tell: {hidden_total}");
+    assert!(control_seen > 0, "the control should hide a leaf that is seen");
 }

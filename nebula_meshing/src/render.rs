@@ -281,6 +281,10 @@ pub struct RenderMesh {
     /// The range of `skirt_edges` of each side's skirt (index as in
     /// `FaceDirection::HORIZONTAL`).
     pub skirt_ranges: [std::ops::Range<usize>; 4],
+    /// A radius, metres, under which no point of the surface is drawn,
+    /// morphed or not (skirts hang lower): what an occlusion test may take
+    /// as rock under the chunk's patch. `INFINITY` for an empty mesh.
+    pub lowest_radius: f64,
 }
 
 impl RenderMesh {
@@ -394,7 +398,37 @@ impl ChunkMesh {
             skirt_edges.extend(edges.map(|[a, b]| [renumbered[a as usize], renumbered[b as usize]]));
             first..skirt_edges.len()
         });
-        RenderMesh { vertices, indices, surface_side_ranges: self.surface_side_ranges(), skirt_edges, skirt_ranges }
+        RenderMesh {
+            vertices,
+            indices,
+            surface_side_ranges: self.surface_side_ranges(),
+            skirt_edges,
+            skirt_ranges,
+            lowest_radius: self.lowest_radius(),
+        }
+    }
+
+    /// [`RenderMesh::lowest_radius`]: every drawn point lies on a triangle
+    /// between vertices that each lie between its position and its morph
+    /// target, so in the convex hull of those points. All of them lie
+    /// within angle ρ of their mean direction `c` and at least `r` from the
+    /// centre, so `p · c ≥ r cos ρ` for each, and for the hull too: no
+    /// drawn point is nearer the centre than `r cos ρ` (the chord's sag).
+    /// Less what the renderer's f32 and f16 can move a point: its offset
+    /// from the morph target is an f16 in voxels of the chunk's LOD, a few
+    /// at most (2⁻⁹ of a voxel apart there), the rest a centimetre.
+    fn lowest_radius(&self) -> f64 {
+        let surface = || (0..self.vertices.len()).filter(|&i| self.skirt_top(i).is_none());
+        let points = || surface().flat_map(|i| [self.world[i], self.morph_world[i]]);
+        let centre = points().fold(DVec3::ZERO, |sum, p| sum + p.normalize_or_zero()).normalize_or_zero();
+        if centre == DVec3::ZERO {
+            return f64::INFINITY;
+        }
+        let (lowest, cos_spread) = points().fold((f64::INFINITY, 1.0_f64), |(lowest, cos), p| {
+            let r = p.length();
+            (lowest.min(r), cos.min(p.dot(centre) / r))
+        });
+        lowest * cos_spread.max(0.0) - 0.01 - self.layout.voxel_edge(self.key.lod) / 256.0
     }
 
     /// The vertices in GPU form (see [`RenderVertex`]), in the order of

@@ -757,6 +757,12 @@ fn lattice_tops(meshes: &[ChunkMesh], morphed: bool, lines: &[(f64, f64)]) -> Ve
 }
 
 /// Meshes every surface chunk of `column` (no seam passes).
+/// A random column of `face` at `lod`, from `unit` (uniform in [0, 1)).
+fn random_column(layout: &ChunkLayout, face: CubeFace, lod: u8, unit: &mut impl FnMut() -> f64) -> ChunkColumn {
+    let per_edge = f64::from(layout.chunks_per_edge(lod));
+    ChunkColumn { face, lod, x: (unit() * per_edge) as u32, y: (unit() * per_edge) as u32 }
+}
+
 fn column_meshes(source: &ProceduralPlanet, column: ChunkColumn) -> Vec<ChunkMesh> {
     let mut buffer = ChunkMeshBuffer::new();
     source
@@ -837,13 +843,7 @@ fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() 
     let (mut checked, mut worst, mut unscaled_overflows) = (0, 0.0_f64, 0);
     for lod in [0, 1, 3, 6, 9, 12, 15, max_lod] {
         for case in 0..3 {
-            let per_edge = earth.layout().chunks_per_edge(lod);
-            let column = ChunkColumn {
-                face: CubeFace::ALL[(usize::from(lod) + case) % 6],
-                lod,
-                x: (unit() * f64::from(per_edge)) as u32,
-                y: (unit() * f64::from(per_edge)) as u32,
-            };
+            let column = random_column(earth.layout(), CubeFace::ALL[(usize::from(lod) + case) % 6], lod, &mut unit);
             for mesh in column_meshes(&earth, column) {
                 let Some(&centre) = mesh.world.first() else { continue };
                 let reach = earth.layout().voxel_edge(lod) * 64.0;
@@ -1208,4 +1208,53 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
     assert!(chunks >= 12, "only {chunks} chunks with caves found");
     assert!(2 * plugged_triangles < open_triangles, "{plugged_triangles} of {open_triangles}");
     assert!(10 * lit_plugged >= 9 * lit_open, "{lit_plugged} of {lit_open} lit vertices left");
+}
+
+#[test]
+fn no_drawn_point_lies_under_a_meshes_lowest_radius() {
+    // `RenderMesh::lowest_radius` is what an occlusion test takes as rock:
+    // every point of every surface triangle, as the vertex shader places it
+    // at any morph factor, lies at or over it. Earth chunks at LODs from 0
+    // to 15 seen from eyes near them, random points on every triangle. The
+    // control: the lowest vertex alone (no allowance for the chords between
+    // vertices, which cut under the sphere) has drawn points under it at
+    // the coarse LODs.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(7)).unwrap();
+    let mut state = 0x10e5_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let (mut points, mut under_vertices, mut worst) = (0, 0, f64::INFINITY);
+    for lod in [0, 1, 2, 4, 6, 8, 10, 12, 15] {
+        for case in 0..3 {
+            let column = random_column(earth.layout(), CubeFace::ALL[(usize::from(lod) + case) % 6], lod, &mut unit);
+            for mesh in column_meshes(&earth, column) {
+                let Some(&centre) = mesh.world.first() else { continue };
+                let render = mesh.render_mesh();
+                let lowest_vertex =
+                    mesh.world.iter().chain(&mesh.morph_world).map(|p| p.length()).fold(f64::INFINITY, f64::min);
+                let edge = earth.layout().voxel_edge(lod);
+                let eye = centre + DVec3::new(unit() - 0.5, unit() - 0.5, unit() + 0.2) * edge * 64.0;
+                let frame = FrameDraw::new(eye, 1000.0, 1.0, true);
+                let draw = mesh.chunk_draw(edge * 10f64.powf(4.0 * unit() - 2.0));
+                let surface: usize = render.drawn_ranges(&draw).map(|r| r.len() / 3).sum();
+                let eye = frame.eye();
+                for triangle in render.drawn_triangles(&frame, &draw).iter().take(surface) {
+                    for _ in 0..4 {
+                        let (a, b) = (unit(), unit());
+                        let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+                        let p = triangle[0] + (triangle[1] - triangle[0]) * a + (triangle[2] - triangle[0]) * b;
+                        let r = (eye + p).length();
+                        assert!(r >= render.lowest_radius, "LOD {lod}: a point {} m under", render.lowest_radius - r);
+                        worst = worst.min(r - render.lowest_radius);
+                        under_vertices += usize::from(r < lowest_vertex - 1e-3);
+                        points += 1;
+                    }
+                }
+            }
+        }
+    }
+    println!(
+        "{points} drawn points over the lowest radius (closest {worst:.4} m); {under_vertices} under the lowest vertex"
+    );
+    assert!(points > 10_000, "too few points: {points}");
+    assert!(under_vertices > 0, "the control cannot tell: no point under the lowest vertex");
 }

@@ -446,6 +446,14 @@ impl<S: VoxelSource> VoxelSource for EditedSource<S> {
         Ok(self.widened(column, self.base.surface_bounds(column)?))
     }
 
+    fn surface_top_radius(&self, column: ChunkColumn) -> Result<f64, VoxelError> {
+        let top = self.base.surface_top_radius(column)?;
+        Ok(match self.touched_columns.contains_key(&column) {
+            true => top.max(self.widened(column, self.base.surface_bounds(column)?).max_radius),
+            false => top,
+        })
+    }
+
     fn surface_survey(&self, column: ChunkColumn) -> Result<SurfaceSurvey, VoxelError> {
         // Edits reach only the layers of all (`layer_view` says so).
         let base = self.base.surface_survey(column)?;

@@ -344,6 +344,10 @@ struct HeightCache {
     points: Mutex<HashMap<(CubeFace, i64, i64), f64>>,
 }
 
+/// Grid cells along each side of a column where
+/// [`VoxelSource::surface_top_radius`] samples H.
+const TOP_GRID: i64 = 8;
+
 /// Lattice points [`HeightCache`] keeps at most: about 3 MB.
 const HEIGHT_CACHE_POINTS: usize = 1 << 16;
 
@@ -1524,6 +1528,35 @@ impl VoxelSource for ProceduralPlanet {
 
     fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
         Ok(self.bounds_reaching(&self.column_relief(column)?, self.caves.deepest(), None))
+    }
+
+    fn surface_top_radius(&self, column: ChunkColumn) -> Result<f64, VoxelError> {
+        let relief = self.column_relief(column)?;
+        // H at a 9 × 9 grid of the far-corner columns (as `column_relief`
+        // samples 5 of them, which this grid holds): every voxel column's
+        // sample, at any LOD under the column, is within `spacing` (in
+        // |Δi| + |Δj|) of one, so S·spacing covers what lies between.
+        let cells = i64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod);
+        let spacing = cells / TOP_GRID;
+        let mut sampled = f64::NEG_INFINITY;
+        for a in 0..=TOP_GRID {
+            for b in 0..=TOP_GRID {
+                let i = i64::from(column.x) * cells + a * spacing;
+                let j = i64::from(column.y) * cells + b * spacing;
+                let height = || self.column_height_layers(column.face, i - 1, j - 1);
+                // The memo holds the tree's samples (its nodes' corners
+                // and centres, here and at the children): not the rest,
+                // which would crowd them out.
+                let shared = a % (TOP_GRID / 2) == 0 && b % (TOP_GRID / 2) == 0;
+                let h = if shared { self.heights.point(column.face, i, j, height) } else { height() };
+                sampled = sampled.max(h);
+            }
+        }
+        let high = relief.high.min(sampled + relief.slope * spacing as f64);
+        // A voxel's top is within half a layer over its column's H (as in
+        // `bounds_reaching`).
+        let max_layer = (high + 0.5).ceil();
+        Ok(self.layout.sphere().layer_radius(max_layer + 1.0))
     }
 
     fn layer_view(&self, eye: nebula_math::DVec3) -> LayerView {

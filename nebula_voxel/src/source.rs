@@ -148,6 +148,18 @@ pub trait VoxelSource: Send + Sync {
     /// [`VoxelError`] for a column that is not on this planet.
     fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError>;
 
+    /// A radius, metres, that no surface of `column` rises above, at its
+    /// LOD or any finer one: [`VoxelSource::surface_bounds`]' top, or a
+    /// tighter one where finding it costs more than the bounds the LOD tree
+    /// asks of every node (the procedural planet samples a 9 × 9 grid of
+    /// heights). What an occlusion test reads of a far column it might hide.
+    ///
+    /// # Errors
+    /// As [`VoxelSource::surface_bounds`].
+    fn surface_top_radius(&self, column: ChunkColumn) -> Result<f64, VoxelError> {
+        Ok(self.surface_bounds(column)?.max_radius)
+    }
+
     /// δ(L): a bound, in metres, on how far the voxel surface at `lod` lies
     /// from the LOD-0 voxel surface, measured radially. 0 at LOD 0.
     fn geometric_error(&self, lod: u8) -> f64;

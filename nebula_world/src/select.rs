@@ -11,11 +11,12 @@
 //! are above it), and the walls that look away from the eye are told by
 //! the frame thread, for the eye that came.
 
+use std::cell::RefCell;
 use std::time::Instant;
 
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, CullMargin, Frustum, Horizon, LodTree, NodeBounds, children, parent};
+use nebula_lod::{Camera, CullMargin, Frustum, Horizon, LodTree, NodeBounds, TerrainHorizon, children, parent};
 use nebula_math::{DVec3, FaceEdge};
 use nebula_voxel::{ChunkColumn, ChunkKey, LayerView, VoxelSource};
 
@@ -52,6 +53,9 @@ pub(crate) struct Selection {
     /// Whether the last selection asked for meshes of the view:
     /// prefetching waits until it does not.
     pub(crate) view_busy: bool,
+    /// Columns' tight tops ([`VoxelSource::surface_top_radius`]), asked
+    /// for those the ground in front might hide.
+    pub(crate) tops: HashMap<ChunkColumn, f64>,
 }
 
 impl Selection {
@@ -61,6 +65,7 @@ impl Selection {
         Self {
             scratch: SelectScratch::default(),
             under_sea: HashMap::default(),
+            tops: HashMap::default(),
             prefetch_jobs: Vec::new(),
             prefetched_at: 0,
             tree_changed: true,
@@ -196,6 +201,13 @@ pub(crate) fn job_priority<S: VoxelSource + ?Sized>(
     voxels.layout().voxel_edge(column.lod) * tree.screen_space().k() / distance
 }
 
+/// Columns whose tight tops a [`Selection`] remembers before it forgets
+/// them all (about 5 MB).
+const MAX_TOPS_MEMO: usize = 200_000;
+
+/// Tight tops a plan asks the voxel source for at most.
+const NEW_TOPS_PER_PLAN: usize = 256;
+
 /// Chooses what to draw (see the module docs of [`crate::stream`]), the
 /// skirt depth of every drawn side, and the meshing jobs, by priority.
 #[allow(clippy::too_many_lines)]
@@ -232,7 +244,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     let mut edge_stand_ins: HashMap<ChunkColumn, Vec<(ChunkColumn, NodeBounds)>> = HashMap::default();
     let layout = voxels.layout();
     let max_lod = layout.max_lod();
-    let Selection { scratch, under_sea: memo, prefetch_jobs, prefetched_at, tree_changed, keep, view_busy } = selection;
+    let Selection { scratch, under_sea: memo, prefetch_jobs, prefetched_at, tree_changed, keep, view_busy, tops } =
+        selection;
     let SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs, stand_in_climbs } = scratch;
     climbs.clear();
     stand_in_climbs.clear();
@@ -269,8 +282,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     let distance = eye.length();
     let occluder = tree.horizon_occluder(voxels, eye, eye_margin);
     let horizon = occluder.map(|r| Horizon::around(eye, eye_margin, r));
-    let behind = |column: ChunkColumn| horizon.is_some_and(|h| tree.node_bounds(column).is_some_and(|b| h.hides(b)));
-    let bounds_behind = |bounds: &NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
+    let sphere_hides = |bounds: &NodeBounds| horizon.is_some_and(|h| h.hides(bounds));
     // The same for leaves under an opaque sea, seen from above it.
     let sea = sea.filter(|sea| distance - eye_margin > sea.radius);
     if memo.len() > MAX_SEA_BED_MEMO {
@@ -291,11 +303,66 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                     }))
         })
     };
+    // And behind the ground in front, bearing by bearing
+    // ([`TerrainHorizon`]), made of the leaves of the planned view (no line
+    // of sight in it crosses another's patch), each over the rock drawn
+    // for it: under the sea (drawn opaque over them), the sea; where its
+    // meshes are all held, under the lowest point they draw; elsewhere
+    // under its bounds and its parent's (a coarse stand-in may be drawn
+    // for it). Each held mesh is the same whatever came before, so a view
+    // settles to the same picture and chunks however it was reached.
+    let in_plan = |bounds: &NodeBounds| views.as_ref().is_none_or(|(_, planned)| !planned.excludes(bounds));
+    let occluders: Vec<(NodeBounds, f64)> = tree
+        .visible_leaves_with_bounds()
+        .filter(|&(_, b)| options.terrain_occlusion && in_plan(b) && !sphere_hides(b))
+        .map(|(leaf, b)| {
+            if let Some(sea) = sea.filter(|_| sea_hides(leaf, false)) {
+                return (*b, sea.radius);
+            }
+            let drawn = columns.get(&leaf).filter(|c| c.ready(leaf, stale)).and_then(CachedColumn::drawn_floor);
+            let floor = drawn.unwrap_or_else(|| {
+                let parent = parent(leaf).and_then(|p| tree.node_bounds(p)).map_or(b.min_radius, |p| p.min_radius);
+                b.min_radius.min(parent)
+            });
+            (*b, floor)
+        })
+        .collect();
+    let terrain = TerrainHorizon::new(eye, eye_margin, occluders);
+    // A column's bounds are loose far away (they allow for slope over the
+    // whole patch): where its lowest surface would be hidden, its top is
+    // sampled closer before it is judged seen.
+    if tops.len() > MAX_TOPS_MEMO {
+        tops.clear();
+    }
+    // A few hundred new ones a plan at most (each samples 81 heights): the
+    // rest wait for the next, drawn in detail meanwhile.
+    let (tops, new_tops) = (RefCell::new(tops), std::cell::Cell::new(0));
+    let bounds_behind = |column: ChunkColumn, bounds: &NodeBounds| {
+        if sphere_hides(bounds) || terrain.hides(bounds) {
+            return true;
+        }
+        if !terrain.hides(&NodeBounds { max_radius: bounds.min_radius, ..*bounds }) {
+            return false;
+        }
+        let mut tops = tops.borrow_mut();
+        let top = match tops.get(&column) {
+            Some(&top) => top,
+            None if new_tops.get() < NEW_TOPS_PER_PLAN => {
+                new_tops.set(new_tops.get() + 1);
+                let top = voxels.surface_top_radius(column).unwrap_or(f64::INFINITY);
+                tops.insert(column, top);
+                top
+            }
+            None => return false,
+        };
+        terrain.hides(&NodeBounds { max_radius: top.min(bounds.max_radius), ..*bounds })
+    };
+    let behind = |column: ChunkColumn| tree.node_bounds(column).is_some_and(|b| bounds_behind(column, b));
     // What is drawn for a leaf (with its bounds when known): itself, or
     // its coarsest ancestor hidden too (behind the horizon or under the
     // sea), and why.
     let mut drawn_for = |leaf: ChunkColumn, bounds: Option<&NodeBounds>| -> (ChunkColumn, Hidden) {
-        let hidden = if bounds.map_or_else(|| behind(leaf), bounds_behind) {
+        let hidden = if bounds.map_or_else(|| behind(leaf), |b| bounds_behind(leaf, b)) {
             Hidden::BehindHorizon
         } else if sea_hides(leaf, false) {
             Hidden::UnderSea
@@ -539,7 +606,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 let low = bounds
                     .map(|b| b.min_radius)
                     .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                    .filter(|_| !bounds.is_some_and(bounds_behind));
+                    .filter(|_| !bounds.is_some_and(|b| bounds_behind(column, b)));
                 (slot, across, low)
             });
             if let Some(low) = low {

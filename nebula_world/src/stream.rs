@@ -142,11 +142,16 @@ pub struct DrawOptions {
     /// (`ChunkDraw::hidden_sides`): back faces, never seen, about a tenth
     /// of the triangles.
     pub cull_back_sides: bool,
+    /// Draw the leaves that the ground in front hides, bearing by bearing
+    /// ([`TerrainHorizon`](nebula_lod::TerrainHorizon)), as their coarsest
+    /// hidden ancestor (off: only those behind the horizon sphere,
+    /// [`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)).
+    pub terrain_occlusion: bool,
 }
 
 impl Default for DrawOptions {
     fn default() -> Self {
-        Self { skirts: true, morph: MorphRule::Parent, cull_back_sides: true }
+        Self { skirts: true, morph: MorphRule::Parent, cull_back_sides: true, terrain_occlusion: true }
     }
 }
 
@@ -168,6 +173,9 @@ pub struct LoadedChunk<H> {
     /// The LOD relations across its sides it was made for
     /// ([`SeamStrategy`]; the same all round for skirts).
     pub made_for: SideRelations,
+    /// No point of its surface is drawn nearer the planet's centre
+    /// ([`RenderMesh::lowest_radius`]).
+    pub lowest_radius: f64,
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
@@ -187,6 +195,7 @@ impl<H: MeshHandle> LoadedChunk<H> {
             handle,
             surface_triangles: surface.map(count),
             skirt_triangles: skirts.map(count),
+            lowest_radius: mesh.lowest_radius,
             cpu: keep_cpu.then(|| Box::new(mesh)),
             made_for: SAME_ALL_ROUND,
         }
@@ -288,6 +297,13 @@ impl<H: MeshHandle> CachedColumn<H> {
         let top = self.chunks.top()?;
         let layers = (i64::from(top) + 1) * i64::from(nebula_voxel::CHUNK_SIZE) * layout.voxel_span(self.column.lod);
         Some(layout.sphere().layer_radius(layers as f64))
+    }
+
+    /// A radius under which none of its meshes draws a point: under it,
+    /// within the column's patch, is rock as drawn (nothing drawn there,
+    /// and the ground's inside below). `None` without meshes.
+    pub(crate) fn drawn_floor(&self) -> Option<f64> {
+        self.chunks.iter().map(|(_, chunk)| chunk.lowest_radius).reduce(f64::min)
     }
 
     /// Every layer meshed, or awaited after an edit that added it to a
@@ -1702,6 +1718,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let dirty = &[dirty, &stitched].concat();
         // An edit can put anything on the sea bed, and moves bounds.
         self.selection_mut().under_sea.clear();
+        self.selection_mut().tops.clear();
         self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
         // The next job a worker takes reads the new voxels; only the jobs

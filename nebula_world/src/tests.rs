@@ -1394,6 +1394,9 @@ mod streaming {
             }
             self.planet.surface_bounds(column)
         }
+        fn surface_top_radius(&self, column: nebula_voxel::ChunkColumn) -> Result<f64, nebula_voxel::VoxelError> {
+            self.planet.surface_top_radius(column)
+        }
         fn geometric_error(&self, lod: u8) -> f64 {
             self.planet.geometric_error(lod)
         }

@@ -902,6 +902,44 @@ fn culled_back_sides_change_no_pixel() {
     }
 }
 
+/// Drawing what the ground in front hides as coarse stand-ins
+/// (`DrawOptions::terrain_occlusion`, the occlusion of
+/// `nebula_lod::TerrainHorizon`) changes no pixel, with the background
+/// showing through every crack: random Earth poses over land (fixed seed),
+/// two through a 12° lens a few degrees down (where the far ground sinks
+/// behind the near) and one with 60°; together they draw fewer triangles
+/// with it than without. The check can fail: a coarse chunk drawn where it
+/// shows changes pixels (the sea's test shows it for the same stand-ins).
+#[test]
+fn the_ground_hides_only_what_changes_no_pixel() {
+    if !adapter_or_skip("terrain occlusion") {
+        return;
+    }
+    let settings = earth();
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let mut rng = Rng(0x0cc1_0de5_0f1a_0d00);
+    let (mut with, mut without) = (0, 0);
+    for (n, (fov, altitude, pitch)) in
+        [(12.0, (300.0, 800.0), (1.0, 4.0)), (60.0, (30.0, 300.0), (0.0, 10.0)), (12.0, (50.0, 200.0), (0.0, 2.0))]
+            .into_iter()
+            .enumerate()
+    {
+        let dir = place_with_ground(&planet, &mut rng, 5.0..800.0);
+        let heading = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        let (eye, look) = pose(&settings, dir, rng.range(altitude.0, altitude.1), heading, rng.range(pitch.0, pitch.1));
+        let view = shot(eye, look, fov);
+        let off = DrawOptions { terrain_occlusion: false, ..DrawOptions::default() };
+        let all = settled(&format!("occlusion-off-{n}"), &settings, &view, off);
+        let hidden = settled(&format!("occlusion-on-{n}"), &settings, &view, DrawOptions::default());
+        let (before, after) = (all.figures.frame.triangles, hidden.figures.frame.triangles);
+        println!("pose {n}: {before} triangles drawing everything, {after} with the hidden ground coarse");
+        assert_eq!(changed_pixels(&all.rgba, &hidden.rgba), 0, "pose {n}: the hidden ground showed");
+        assert_eq!(hidden.figures.crack_pixels, Some(0), "pose {n}");
+        (with, without) = (with + after, without + before);
+    }
+    assert!((with as f64) < 0.97 * without as f64, "the hidden ground saved too little to tell: {without} → {with}");
+}
+
 /// How many pixels of two same-sized RGBA pictures differ.
 fn changed_pixels(a: &[u8], b: &[u8]) -> usize {
     a.chunks(4).zip(b.chunks(4)).filter(|(a, b)| a != b).count()

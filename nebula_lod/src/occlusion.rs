@@ -1,0 +1,182 @@
+//! Occlusion by the ground around the eye: a horizon for every bearing.
+//!
+//! [`crate::Horizon`] hides what lies behind one sphere, the lowest ground
+//! out to that sphere's own horizon: one valley or one coarse bound near
+//! the eye lowers it all round. [`TerrainHorizon`] keeps, for each bearing,
+//! how high the ground in front rises (as an elevation angle seen from the
+//! eye, by distance), so a far leaf is hidden where nearer ground on its
+//! bearings rises above its highest point: a plain's own horizon, a ridge
+//! in front of a valley.
+//!
+//! Why it hides. Each leaf's surface, at its LOD and every finer one, cave
+//! air included, lies above its bound's lowest radius (its *floor*): below
+//! the floor, inside the leaf's patch, is rock. Take a point `Q` inside the
+//! patch at angular distance φ from the eye's direction, on bearing β, below
+//! the floor. A straight line of sight from the eye on bearing β whose
+//! elevation is lower than `Q`'s passes below `Q`'s radius at φ, so it runs
+//! through the rock under that leaf there; everything on that line farther
+//! than φ is hidden. A leaf whose every point is lower, on every bearing it
+//! spans, than such a point nearer than the leaf's nearest point, is hidden.
+//!
+//! The patches are spherical quads bounded by great circles (lines of one
+//! lattice coordinate on a cube face), so the disc of the leaf's inscribed
+//! radius ([`NodeBounds::inner_angular_radius`]) around its centre is inside
+//! it; the horizon takes from each leaf the arc of that disc at the centre's
+//! distance.
+//!
+//! From every eye within `margin` metres: a point of the segment from the
+//! eye to a target moves by at most `margin` when the eye does, so each
+//! floor is lowered by the margin and each disc shrunk by it.
+//!
+//! A renderer's floors are what it draws: the lowest point of a leaf's
+//! meshes where it holds them (`RenderMesh::lowest_radius` in
+//! `nebula_meshing`), its bounds elsewhere; a floor under the drawn
+//! surface of a watertight picture is what makes a line of sight under it
+//! cross that surface first. Being made of leaves all round (not of the
+//! view's pixels), a horizon does not change when the camera turns.
+
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+use nebula_math::DVec3;
+
+use crate::NodeBounds;
+
+/// Bearing bins all round the eye at most: a bin is about a third of a
+/// typical occluder's arc ([`TerrainHorizon::new`]).
+const MAX_BEARING_BINS: usize = 1 << 14;
+
+/// Bearing bins all round the eye at least.
+const MIN_BEARING_BINS: usize = 1 << 8;
+
+/// One rise of the horizon on a bearing bin: from `angle` (radians from
+/// the eye's direction) on, lines of sight with an elevation slope below
+/// `slope` are blocked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Step {
+    angle: f64,
+    slope: f64,
+}
+
+/// The ground's horizon around an eye, bearing by bearing, built from the
+/// floors of leaves in front ([`TerrainHorizon::new`]).
+#[derive(Clone, Debug)]
+pub struct TerrainHorizon {
+    /// The eye's direction from the centre.
+    up: DVec3,
+    /// |eye|.
+    distance: f64,
+    /// Two unit vectors across `up`: bearing 0 and bearing π/2.
+    east: DVec3,
+    north: DVec3,
+    /// Per bearing bin, rises ordered by angle, each higher than the one
+    /// before.
+    bins: Vec<Vec<Step>>,
+}
+
+/// tan of the elevation angle, seen from distance `d` from the centre on
+/// the axis, of a point at radius `r` and `angle` from the axis.
+fn slope(d: f64, r: f64, angle: f64) -> f64 {
+    (r * angle.cos() - d) / (r * angle.sin())
+}
+
+impl TerrainHorizon {
+    /// The horizon seen from every eye within `margin` metres of `eye`,
+    /// made of the floors of `occluders` (node bounds with a floor radius
+    /// at or under the node's own lowest surface: the radius under which
+    /// its patch is rock as drawn). Occluders past 90° from the eye add
+    /// nothing.
+    pub fn new(eye: DVec3, margin: f64, occluders: impl IntoIterator<Item = (NodeBounds, f64)>) -> Self {
+        let distance = eye.length();
+        let up = eye.normalize_or_zero();
+        let east = up.any_orthonormal_vector();
+        let north = up.cross(east);
+        let mut horizon = Self { up, distance, east, north, bins: vec![Vec::new(); MIN_BEARING_BINS] };
+        if !(distance > 0.0 && distance.is_finite() && margin.is_finite()) {
+            return horizon;
+        }
+        let margin = margin.max(0.0);
+        let mut rises: Vec<(f64, f64, f64, f64)> = Vec::new();
+        for (bounds, floor) in occluders {
+            let floor = floor - margin;
+            // A point of the segment moves by the margin at most; the
+            // deepest such point is at 0.7 of the floor (within 90°).
+            let inner = bounds.inner_angular_radius - 2.0 * margin / floor;
+            let angle = horizon.angle_to(bounds.center_direction);
+            if !(floor > 0.0 && inner > 0.0 && angle > inner && angle < FRAC_PI_2) {
+                continue;
+            }
+            // The bearings over which the disc's arc at `angle` runs.
+            let (sin, cos) = angle.sin_cos();
+            let cos_half = (inner.cos() - cos * cos) / (sin * sin);
+            let half = cos_half.clamp(-1.0, 1.0).acos();
+            rises.push((angle, slope(distance, floor, angle), horizon.bearing(bounds.center_direction), half));
+        }
+        // Bins about a third of the median arc: an arc then covers two or
+        // more whole bins (it counts only for bins it covers wholly), and a
+        // far leaf spans a handful, not hundreds (a test visits each).
+        if !rises.is_empty() {
+            let middle = rises.len() / 2;
+            let (_, median, _) = rises.select_nth_unstable_by(middle, |a, b| a.3.total_cmp(&b.3));
+            let wanted = TAU / (2.0 * median.3 / 3.0);
+            let bins = if wanted.is_finite() { (wanted as usize).next_power_of_two() } else { MAX_BEARING_BINS };
+            horizon.bins = vec![Vec::new(); bins.clamp(MIN_BEARING_BINS, MAX_BEARING_BINS)];
+        }
+        rises.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let count = horizon.bins.len() as i64;
+        let width = TAU / count as f64;
+        for (angle, rise, bearing, half) in rises {
+            // The bins wholly inside [bearing − half, bearing + half].
+            let first = ((bearing - half) / width).ceil() as i64;
+            let last = ((bearing + half) / width).floor() as i64 - 1;
+            for bin in first..=last.min(first + count - 1) {
+                let steps = &mut horizon.bins[bin.rem_euclid(count) as usize];
+                if steps.last().is_none_or(|s| rise > s.slope) {
+                    steps.push(Step { angle, slope: rise });
+                }
+            }
+        }
+        horizon
+    }
+
+    /// Angle from the eye's direction to unit vector `direction`.
+    fn angle_to(&self, direction: DVec3) -> f64 {
+        self.up.angle_between(direction)
+    }
+
+    /// Bearing of unit vector `direction` around the eye, in [0, 2π).
+    fn bearing(&self, direction: DVec3) -> f64 {
+        direction.dot(self.north).atan2(direction.dot(self.east)).rem_euclid(TAU)
+    }
+
+    /// Whether the ground in front hides all of `bounds` from every eye the
+    /// horizon was made for.
+    #[must_use]
+    pub fn hides(&self, bounds: &NodeBounds) -> bool {
+        let centre = self.angle_to(bounds.center_direction);
+        let (near, far) = (centre - bounds.angular_radius, centre + bounds.angular_radius);
+        if near <= 0.0 || far >= FRAC_PI_2 {
+            return false;
+        }
+        // The highest elevation in the bounds: at the top radius, where
+        // that sphere's elevation peaks (its tangent point), clamped to the
+        // bounds' angles.
+        let top = bounds.max_radius;
+        let peak = (top / self.distance).min(1.0).acos();
+        let highest = slope(self.distance, top, peak.clamp(near, far));
+        let half = (bounds.angular_radius.sin() / centre.sin()).min(1.0).asin();
+        let count = self.bins.len() as i64;
+        let width = TAU / count as f64;
+        let bearing = self.bearing(bounds.center_direction);
+        let first = ((bearing - half) / width).floor() as i64;
+        let last = ((bearing + half) / width).floor() as i64;
+        if last - first >= count {
+            return false;
+        }
+        (first..=last).all(|bin| {
+            let steps = &self.bins[bin.rem_euclid(count) as usize];
+            // The highest rise nearer than the bounds.
+            let nearer = steps.partition_point(|s| s.angle < near);
+            nearer > 0 && steps[nearer - 1].slope > highest
+        })
+    }
+}
