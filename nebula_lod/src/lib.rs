@@ -66,7 +66,7 @@ mod tree;
 
 pub use bounds::{CullMargin, Frustum, Horizon, NodeBounds};
 pub use nebula_math::FaceDirection;
-pub use occlusion::TerrainHorizon;
+pub use occlusion::{Clearance, TerrainHorizon};
 pub use relation::{ChunkLodContext, NeighborLodRelation};
 pub use settings::{BalanceMode, Camera, LodError, LodSettings};
 pub use tree::{Cull, LodChanges, LodStats, LodTree, children, parent};

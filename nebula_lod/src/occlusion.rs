@@ -152,17 +152,23 @@ impl TerrainHorizon {
     /// horizon was made for.
     #[must_use]
     pub fn hides(&self, bounds: &NodeBounds) -> bool {
+        self.clearance(bounds).is_some_and(|clearance| clearance.hides(bounds.max_radius))
+    }
+
+    /// How high the ground in front rises over all of `bounds`' bearings,
+    /// nearer than its nearest point: what tells, for any top, whether
+    /// the bounds would be hidden with it ([`Clearance::hides`]). `None`
+    /// where even its lowest surface is seen (so no top can be hidden),
+    /// found without reading every bearing.
+    #[must_use]
+    pub fn clearance(&self, bounds: &NodeBounds) -> Option<Clearance> {
         let centre = self.angle_to(bounds.center_direction);
         let (near, far) = (centre - bounds.angular_radius, centre + bounds.angular_radius);
         if near <= 0.0 || far >= FRAC_PI_2 {
-            return false;
+            return None;
         }
-        // The highest elevation in the bounds: at the top radius, where
-        // that sphere's elevation peaks (its tangent point), clamped to the
-        // bounds' angles.
-        let top = bounds.max_radius;
-        let peak = (top / self.distance).min(1.0).acos();
-        let highest = slope(self.distance, top, peak.clamp(near, far));
+        let mut clearance = Clearance { slope: f64::INFINITY, distance: self.distance, near, far };
+        let lowest = clearance.highest(bounds.min_radius);
         let half = (bounds.angular_radius.sin() / centre.sin()).min(1.0).asin();
         let count = self.bins.len() as i64;
         let width = TAU / count as f64;
@@ -170,13 +176,47 @@ impl TerrainHorizon {
         let first = ((bearing - half) / width).floor() as i64;
         let last = ((bearing + half) / width).floor() as i64;
         if last - first >= count {
-            return false;
+            return None;
         }
-        (first..=last).all(|bin| {
+        for bin in first..=last {
             let steps = &self.bins[bin.rem_euclid(count) as usize];
             // The highest rise nearer than the bounds.
             let nearer = steps.partition_point(|s| s.angle < near);
-            nearer > 0 && steps[nearer - 1].slope > highest
-        })
+            let rise = if nearer > 0 { steps[nearer - 1].slope } else { f64::NEG_INFINITY };
+            if rise <= lowest {
+                return None;
+            }
+            clearance.slope = clearance.slope.min(rise);
+        }
+        Some(clearance)
+    }
+}
+
+/// How high the ground in front of some bounds rises
+/// ([`TerrainHorizon::clearance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clearance {
+    /// The lowest rise over the bounds' bearings (an elevation's tangent).
+    slope: f64,
+    /// The eye's distance from the centre.
+    distance: f64,
+    /// The bounds' nearest and farthest angle from the eye's direction.
+    near: f64,
+    far: f64,
+}
+
+impl Clearance {
+    /// Whether the bounds, with their top at radius `top`, are hidden.
+    #[must_use]
+    pub fn hides(&self, top: f64) -> bool {
+        self.highest(top) < self.slope
+    }
+
+    /// The highest elevation (its tangent) of a point of the bounds under
+    /// radius `top`: at that radius, where that sphere's elevation peaks
+    /// (its tangent point), clamped to the bounds' angles.
+    fn highest(&self, top: f64) -> f64 {
+        let peak = (top / self.distance).min(1.0).acos();
+        slope(self.distance, top, peak.clamp(self.near, self.far))
     }
 }

@@ -817,15 +817,12 @@ fn the_ground_in_front_hides_only_what_rock_hides() {
             leaves
                 .iter()
                 .filter_map(|&(column, bounds)| {
-                    if terrain.hides(&bounds) {
+                    let clearance = terrain.clearance(&bounds)?;
+                    if clearance.hides(bounds.max_radius) {
                         return Some((column, bounds));
                     }
-                    if !terrain.hides(&NodeBounds { max_radius: bounds.min_radius, ..bounds }) {
-                        return None;
-                    }
                     let top = earth.surface_top_radius(column).unwrap().min(bounds.max_radius);
-                    let tight = NodeBounds { max_radius: top, ..bounds };
-                    terrain.hides(&tight).then_some((column, tight))
+                    clearance.hides(top).then_some((column, NodeBounds { max_radius: top, ..bounds }))
                 })
                 .collect()
         };

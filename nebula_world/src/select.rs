@@ -119,6 +119,11 @@ pub(crate) struct SelectSettings {
     /// it is drawn from may be, metres (0: made for the camera that came).
     pub(crate) camera: Camera,
     pub(crate) eye_margin: f64,
+    /// Whether far columns' tops may be sampled
+    /// ([`VoxelSource::surface_top_radius`], tens of microseconds each, up
+    /// to [`NEW_TOPS_PER_PLAN`]): on the LOD thread, not on the frame
+    /// thread (whose plan also starts without the thread's memo of them).
+    pub(crate) sample_tops: bool,
 }
 
 /// What a plan is made from: the streamer as it was after the last frame.
@@ -229,6 +234,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         near_budget,
         camera,
         eye_margin,
+        sample_tops,
     } = settings;
     let eye = camera.position;
     // The view planned for, where it is planned with a margin around the
@@ -305,26 +311,29 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     };
     // And behind the ground in front, bearing by bearing
     // ([`TerrainHorizon`]), made of the leaves of the planned view (no line
-    // of sight in it crosses another's patch), each over the rock drawn
-    // for it: under the sea (drawn opaque over them), the sea; where its
-    // meshes are all held, under the lowest point they draw; elsewhere
-    // under its bounds and its parent's (a coarse stand-in may be drawn
-    // for it). Each held mesh is the same whatever came before, so a view
-    // settles to the same picture and chunks however it was reached.
+    // of sight in it crosses another's patch) over what is drawn for them:
+    // under the sea (drawn opaque over them), the sea; where a leaf's
+    // meshes are all held, the lowest point they draw. A leaf still
+    // waiting for its meshes is drawn through a stand-in whose surface is
+    // not its own: it hides nothing yet. A held mesh is the same whatever
+    // came before, so a view settles to the same picture and chunks however
+    // it was reached.
+    // The visible leaves' cache slots, looked up once for this and the
+    // leaf loop below (a lookup is a miss in memory).
+    let leaf_slots: Vec<Option<usize>> =
+        tree.visible_leaves_with_bounds().map(|(leaf, _)| columns.slot(&leaf).map(|(slot, _)| slot)).collect();
     let in_plan = |bounds: &NodeBounds| views.as_ref().is_none_or(|(_, planned)| !planned.excludes(bounds));
     let occluders: Vec<(NodeBounds, f64)> = tree
         .visible_leaves_with_bounds()
-        .filter(|&(_, b)| options.terrain_occlusion && in_plan(b) && !sphere_hides(b))
-        .map(|(leaf, b)| {
-            if let Some(sea) = sea.filter(|_| sea_hides(leaf, false)) {
-                return (*b, sea.radius);
+        .zip(&leaf_slots)
+        .filter(|&((_, b), _)| options.terrain_occlusion && in_plan(b) && !sphere_hides(b))
+        .filter_map(|((leaf, b), &slot)| {
+            // Wholly under the sea, first (no lookup for the rest).
+            if let Some(sea) = sea.filter(|sea| b.max_radius <= sea.radius && sea_hides(leaf, false)) {
+                return Some((*b, sea.radius));
             }
-            let drawn = columns.get(&leaf).filter(|c| c.ready(leaf, stale)).and_then(CachedColumn::drawn_floor);
-            let floor = drawn.unwrap_or_else(|| {
-                let parent = parent(leaf).and_then(|p| tree.node_bounds(p)).map_or(b.min_radius, |p| p.min_radius);
-                b.min_radius.min(parent)
-            });
-            (*b, floor)
+            let cached = columns.in_slot(slot?, leaf).filter(|c| c.ready(leaf, stale))?;
+            Some((*b, cached.drawn_floor()?))
         })
         .collect();
     let terrain = TerrainHorizon::new(eye, eye_margin, occluders);
@@ -338,16 +347,17 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // rest wait for the next, drawn in detail meanwhile.
     let (tops, new_tops) = (RefCell::new(tops), std::cell::Cell::new(0));
     let bounds_behind = |column: ChunkColumn, bounds: &NodeBounds| {
-        if sphere_hides(bounds) || terrain.hides(bounds) {
+        if sphere_hides(bounds) {
             return true;
         }
-        if !terrain.hides(&NodeBounds { max_radius: bounds.min_radius, ..*bounds }) {
-            return false;
+        let Some(clearance) = terrain.clearance(bounds) else { return false };
+        if clearance.hides(bounds.max_radius) {
+            return true;
         }
         let mut tops = tops.borrow_mut();
         let top = match tops.get(&column) {
             Some(&top) => top,
-            None if new_tops.get() < NEW_TOPS_PER_PLAN => {
+            None if sample_tops && new_tops.get() < NEW_TOPS_PER_PLAN => {
                 new_tops.set(new_tops.get() + 1);
                 let top = voxels.surface_top_radius(column).unwrap_or(f64::INFINITY);
                 tops.insert(column, top);
@@ -355,7 +365,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             }
             None => return false,
         };
-        terrain.hides(&NodeBounds { max_radius: top.min(bounds.max_radius), ..*bounds })
+        clearance.hides(top)
     };
     let behind = |column: ChunkColumn| tree.node_bounds(column).is_some_and(|b| bounds_behind(column, b));
     // What is drawn for a leaf (with its bounds when known): itself, or
@@ -386,8 +396,11 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         (top.unwrap_or(leaf), hidden)
     };
     let (mut behind_horizon, mut under_the_sea) = (0, 0);
-    for (leaf, bounds) in tree.visible_leaves_with_bounds() {
-        let (leaf, hidden) = drawn_for(leaf, Some(bounds));
+    for ((leaf, bounds), &leaf_slot) in tree.visible_leaves_with_bounds().zip(&leaf_slots) {
+        let (drawn_leaf, hidden) = drawn_for(leaf, Some(bounds));
+        // The slot of what is drawn for it: the leaf's, looked up above.
+        let own_slot = (drawn_leaf == leaf).then_some(leaf_slot);
+        let leaf = drawn_leaf;
         match hidden {
             Hidden::No => {}
             Hidden::BehindHorizon => behind_horizon += 1,
@@ -411,7 +424,11 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         if hidden != Hidden::No && !hidden_tops.insert(leaf) {
             continue;
         }
-        if let Some((slot, cached)) = columns.slot(&leaf)
+        let slot = match own_slot {
+            Some(slot) => slot.and_then(|slot| columns.in_slot(slot, leaf).map(|cached| (slot, cached))),
+            None => columns.slot(&leaf),
+        };
+        if let Some((slot, cached)) = slot
             && cached.ready(leaf, stale)
         {
             // In use even when a stand-in covering it is drawn instead (a
@@ -606,7 +623,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 let low = bounds
                     .map(|b| b.min_radius)
                     .or_else(|| voxels.surface_bounds(column).ok().map(|b| b.min_radius))
-                    .filter(|_| !bounds.is_some_and(|b| bounds_behind(column, b)));
+                    .filter(|_| !bounds.is_some_and(|b| sphere_hides(b) || terrain.hides(b)));
                 (slot, across, low)
             });
             if let Some(low) = low {

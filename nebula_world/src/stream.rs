@@ -1375,7 +1375,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             return;
         }
         let (next, margin) = predict(previous, current, last_step);
-        let settings = self.select_settings(self.frame + 1, next, margin.distance);
+        let settings = self.select_settings(self.frame + 1, next, margin.distance, true);
         let select = SelectRequest {
             selection: self.selection.take().unwrap_or_else(|| Box::new(Selection::new())),
             columns: self.cache.columns.clone(),
@@ -1458,7 +1458,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// The settings of a plan for `frame`, for `camera` (its eye, or one
     /// within `eye_margin` of it).
-    fn select_settings(&self, frame: u64, camera: Camera, eye_margin: f64) -> SelectSettings {
+    fn select_settings(&self, frame: u64, camera: Camera, eye_margin: f64, sample_tops: bool) -> SelectSettings {
         SelectSettings {
             frame,
             view: self.view,
@@ -1471,6 +1471,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             near_budget: self.cache.near_budget(self.held),
             camera,
             eye_margin,
+            sample_tops,
         }
     }
 
@@ -1489,7 +1490,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// Plans this frame's selection on the frame thread (no plan made
     /// ahead could serve).
     fn plan_here(&mut self) -> Plan<H> {
-        let settings = self.select_settings(self.frame, self.eye, 0.0);
+        let settings = self.select_settings(self.frame, self.eye, 0.0, false);
         let mut selection = self.selection.take().unwrap_or_else(|| Box::new(Selection::new()));
         let input = SelectInput {
             voxels: &*self.voxels,
