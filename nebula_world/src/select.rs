@@ -309,19 +309,20 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                     }))
         })
     };
-    // And behind the ground in front, bearing by bearing
-    // ([`TerrainHorizon`]), made of the leaves of the planned view (no line
-    // of sight in it crosses another's patch) over what is drawn for them:
+    // The visible leaves' cache slots, looked up once for the ground's
+    // horizon and the leaf loop below (a lookup is a miss in memory).
+    let leaf_slots: Vec<Option<usize>> =
+        tree.visible_leaves_with_bounds().map(|(leaf, _)| columns.slot(&leaf).map(|(slot, _)| slot)).collect();
+    // Leaves behind the ground in front are hidden too: its horizon,
+    // bearing by bearing ([`TerrainHorizon`]), is made of the leaves of the
+    // planned view (no line of sight in it crosses another's patch), over
+    // what is drawn for them:
     // under the sea (drawn opaque over them), the sea; where a leaf's
     // meshes are all held, the lowest point they draw. A leaf still
     // waiting for its meshes is drawn through a stand-in whose surface is
     // not its own: it hides nothing yet. A held mesh is the same whatever
     // came before, so a view settles to the same picture and chunks however
     // it was reached.
-    // The visible leaves' cache slots, looked up once for this and the
-    // leaf loop below (a lookup is a miss in memory).
-    let leaf_slots: Vec<Option<usize>> =
-        tree.visible_leaves_with_bounds().map(|(leaf, _)| columns.slot(&leaf).map(|(slot, _)| slot)).collect();
     let in_plan = |bounds: &NodeBounds| views.as_ref().is_none_or(|(_, planned)| !planned.excludes(bounds));
     let occluders: Vec<(NodeBounds, f64)> = tree
         .visible_leaves_with_bounds()
