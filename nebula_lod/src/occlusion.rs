@@ -164,7 +164,8 @@ impl TerrainHorizon {
     pub fn clearance(&self, bounds: &NodeBounds) -> Option<Clearance> {
         let centre = self.angle_to(bounds.center_direction);
         let (near, far) = (centre - bounds.angular_radius, centre + bounds.angular_radius);
-        if near <= 0.0 || far >= FRAC_PI_2 {
+        // (NaN bounds fail this too.)
+        if !(near > 0.0 && far < FRAC_PI_2) {
             return None;
         }
         let mut clearance = Clearance { slope: f64::INFINITY, distance: self.distance, near, far };

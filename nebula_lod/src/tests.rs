@@ -857,3 +857,60 @@ fn the_ground_in_front_hides_only_what_rock_hides() {
     assert!(hidden_total > 500, "too few hidden leaves to tell: {hidden_total}");
     assert!(control_seen > 0, "the control should hide a leaf that is seen");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// Any eye, margin and occluders (NaN and infinities among them) make
+    /// a horizon without a panic, and its answers are monotone: bounds it
+    /// hides stay hidden with a lower top, and behind occluders whose
+    /// floors are all raised. Nodes lie around an eye just over a unit
+    /// sphere, within a narrow fan of bearings, so that many are hidden.
+    #[test]
+    fn a_terrain_horizon_takes_any_input_and_hides_monotonically(
+        height in prop_oneof![1e-4f64..0.02, Just(f64::NAN), Just(f64::INFINITY), Just(-0.5)],
+        margin in prop_oneof![Just(0.0), 0.0f64..1e-4, Just(f64::NAN), Just(-1.0)],
+        nodes in proptest::collection::vec(
+            (
+                prop_oneof![0.0f64..0.3, Just(f64::NAN)],
+                0.0f64..0.2,
+                1e-3f64..0.02,
+                0.0f64..1.0,
+                0.995f64..1.0,
+                0.0f64..0.005,
+            ),
+            1..60,
+        ),
+        lift in 0.0f64..0.003,
+    ) {
+        let eye = DVec3::new(0.3, -0.5, 0.8).normalize();
+        let (east, north) = (eye.any_orthonormal_vector(), eye.cross(eye.any_orthonormal_vector()));
+        let bounds: Vec<NodeBounds> = nodes
+            .iter()
+            .map(|&(angle, bearing, radius, inner, low, rise)| {
+                let towards = east * bearing.cos() + north * bearing.sin();
+                NodeBounds {
+                    min: DVec3::ZERO,
+                    max: DVec3::ZERO,
+                    center_direction: eye * angle.cos() + towards * angle.sin(),
+                    angular_radius: radius,
+                    inner_angular_radius: radius * inner,
+                    min_radius: low,
+                    max_radius: low + rise,
+                }
+            })
+            .collect();
+        let eye = eye * (1.0 + height);
+        let horizon = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, b.min_radius)));
+        let raised = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, b.min_radius + lift)));
+        for b in &bounds {
+            if horizon.hides(b) {
+                let lower = NodeBounds { max_radius: b.min_radius.max(b.max_radius - lift), ..*b };
+                prop_assert!(horizon.hides(&lower), "a lower top is seen: {:?}", lower);
+                if margin == 0.0 {
+                    prop_assert!(raised.hides(b), "hidden by lower floors, seen with higher ones: {:?}", b);
+                }
+            }
+        }
+    }
+}
