@@ -41,19 +41,24 @@ impl NodeBounds {
         let sphere = layout.sphere();
         let size = f64::from(CHUNK_SIZE) * layout.voxel_span(column.lod) as f64;
         let (i0, j0) = (f64::from(column.x) * size, f64::from(column.y) * size);
-        let direction = |a: f64, b: f64| sphere.direction(column.face, i0 + a * size, j0 + b * size);
-        let center_direction = direction(0.5, 0.5);
+        // The 3 × 3 grid's directions, once each: `grid[a][b]` at
+        // `(a / 2, b / 2)` of the patch.
+        let grid: [[DVec3; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|b| {
+                sphere.direction(column.face, i0 + a as f64 * 0.5 * size, j0 + b as f64 * 0.5 * size)
+            })
+        });
+        let center_direction = grid[1][1];
         let (mut min, mut max) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         // Largest angles as smallest cosines: one `acos` each at the end.
         let mut radius_cosine = 1.0_f64;
         let mut spacing_cosine = 1.0_f64;
         for a in 0..3 {
             for b in 0..3 {
-                let d = direction(f64::from(a) * 0.5, f64::from(b) * 0.5);
+                let d = grid[a][b];
                 radius_cosine = radius_cosine.min(center_direction.dot(d));
                 if a < 2 && b < 2 {
-                    let diagonal = direction(f64::from(a + 1) * 0.5, f64::from(b + 1) * 0.5);
-                    spacing_cosine = spacing_cosine.min(d.dot(diagonal));
+                    spacing_cosine = spacing_cosine.min(d.dot(grid[a + 1][b + 1]));
                 }
                 for radius in [surface.min_radius, surface.max_radius] {
                     min = min.min(d * radius);
@@ -64,7 +69,7 @@ impl NodeBounds {
         let angular_radius = radius_cosine.clamp(-1.0, 1.0).acos();
         // The sides are great circles (one lattice coordinate held): the
         // disc reaches the nearest one's plane.
-        let corners = [direction(0.0, 0.0), direction(1.0, 0.0), direction(1.0, 1.0), direction(0.0, 1.0)];
+        let corners = [grid[0][0], grid[2][0], grid[2][2], grid[0][2]];
         let nearest_side_sine = (0..4)
             .map(|k| center_direction.dot(corners[k].cross(corners[(k + 1) % 4]).normalize()).abs())
             .fold(1.0_f64, f64::min);

@@ -953,6 +953,15 @@ impl ProceduralPlanet {
         unit_ridges(ridges).powi(MOUNTAIN_SHARPNESS) * mountain_mask(continents)
     }
 
+    /// H in layers at lattice point `(i, j)` of `face`: that of the LOD-0
+    /// column whose far corner it is (a node of every grid, so no grid is
+    /// interpolated for it), through the memo of the LOD tree's bound
+    /// samples when `remember`.
+    fn corner_height(&self, face: CubeFace, i: i64, j: i64, remember: bool) -> f64 {
+        let height = || self.column_height_layers(face, i - 1, j - 1);
+        if remember { self.heights.point(face, i, j, height) } else { height() }
+    }
+
     /// Height in layers of LOD-0 column `(i, j)` of `face` (which may lie
     /// just past the face's edge: the face's own grids and map, extended).
     fn column_height_layers(&self, face: CubeFace, i: i64, j: i64) -> f64 {
@@ -1401,7 +1410,7 @@ impl ProceduralPlanet {
             for (a, b) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)] {
                 let i = i64::from(column.x) * cells + a * cells / 2;
                 let j = i64::from(column.y) * cells + b * cells / 2;
-                let h = self.heights.point(column.face, i, j, || self.column_height_layers(column.face, i - 1, j - 1));
+                let h = self.corner_height(column.face, i, j, true);
                 sampled_low = sampled_low.min(h);
                 sampled_high = sampled_high.max(h);
             }
@@ -1543,13 +1552,11 @@ impl VoxelSource for ProceduralPlanet {
             for b in 0..=TOP_GRID {
                 let i = i64::from(column.x) * cells + a * spacing;
                 let j = i64::from(column.y) * cells + b * spacing;
-                let height = || self.column_height_layers(column.face, i - 1, j - 1);
                 // The memo holds the tree's samples (its nodes' corners
                 // and centres, here and at the children): not the rest,
                 // which would crowd them out.
                 let shared = a % (TOP_GRID / 2) == 0 && b % (TOP_GRID / 2) == 0;
-                let h = if shared { self.heights.point(column.face, i, j, height) } else { height() };
-                sampled = sampled.max(h);
+                sampled = sampled.max(self.corner_height(column.face, i, j, shared));
             }
         }
         let high = relief.high.min(sampled + relief.slope * spacing as f64);

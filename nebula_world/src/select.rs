@@ -309,10 +309,14 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                     }))
         })
     };
-    // The visible leaves' cache slots, looked up once for the ground's
-    // horizon and the leaf loop below (a lookup is a miss in memory).
-    let leaf_slots: Vec<Option<usize>> =
-        tree.visible_leaves_with_bounds().map(|(leaf, _)| columns.slot(&leaf).map(|(slot, _)| slot)).collect();
+    // The visible leaves' cache slots (a lookup is a miss in memory) and
+    // whether the planned view holds them, found once for the ground's
+    // horizon and the leaf loop below.
+    let in_plan = |bounds: &NodeBounds| views.as_ref().is_none_or(|(_, planned)| !planned.excludes(bounds));
+    let leaf_slots: Vec<(Option<usize>, bool)> = tree
+        .visible_leaves_with_bounds()
+        .map(|(leaf, bounds)| (columns.slot(&leaf).map(|(slot, _)| slot), in_plan(bounds)))
+        .collect();
     // Leaves behind the ground in front are hidden too: its horizon,
     // bearing by bearing ([`TerrainHorizon`]), is made of the leaves of the
     // planned view (no line of sight in it crosses another's patch), over
@@ -323,12 +327,11 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // not its own: it hides nothing yet. A held mesh is the same whatever
     // came before, so a view settles to the same picture and chunks however
     // it was reached.
-    let in_plan = |bounds: &NodeBounds| views.as_ref().is_none_or(|(_, planned)| !planned.excludes(bounds));
     let occluders: Vec<(NodeBounds, f64)> = tree
         .visible_leaves_with_bounds()
         .zip(&leaf_slots)
-        .filter(|&((_, b), _)| options.terrain_occlusion && in_plan(b) && !sphere_hides(b))
-        .filter_map(|((leaf, b), &slot)| {
+        .filter(|&((_, b), &(_, planned))| options.terrain_occlusion && planned && !sphere_hides(b))
+        .filter_map(|((leaf, b), &(slot, _))| {
             // Wholly under the sea, first (no lookup for the rest).
             if let Some(sea) = sea.filter(|sea| b.max_radius <= sea.radius && sea_hides(leaf, false)) {
                 return Some((*b, sea.radius));
@@ -397,7 +400,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         (top.unwrap_or(leaf), hidden)
     };
     let (mut behind_horizon, mut under_the_sea) = (0, 0);
-    for ((leaf, bounds), &leaf_slot) in tree.visible_leaves_with_bounds().zip(&leaf_slots) {
+    for ((leaf, bounds), &(leaf_slot, planned)) in tree.visible_leaves_with_bounds().zip(&leaf_slots) {
         let (drawn_leaf, hidden) = drawn_for(leaf, Some(bounds));
         // The slot of what is drawn for it: the leaf's, looked up above.
         let own_slot = (drawn_leaf == leaf).then_some(leaf_slot);
@@ -413,7 +416,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         // that, and the plan serves no camera that sees it (hidden from
         // every eye within the margin, none sees it).
         let edge = match &views {
-            Some((_, planned)) if planned.excludes(bounds) => {
+            Some(_) if !planned => {
                 if hidden == Hidden::No {
                     unseen.push(*bounds);
                 }

@@ -22,11 +22,11 @@
 //! ```text
 //!   for each visible leaf L of the LOD tree:
 //!     L behind the terrain's horizon → L := its coarsest ancestor that is
-//!       (the sphere under the        hidden too
-//!       ground near the eye,
-//!       LodTree::horizon_occluder, or
-//!       the ground in front, bearing
-//!       by bearing, TerrainHorizon)
+//!                                    hidden too (the sphere under the
+//!                                    ground near the eye,
+//!                                    LodTree::horizon_occluder, or the
+//!                                    ground in front bearing by bearing,
+//!                                    TerrainHorizon)
 //!     L under an opaque sea          → L := its coarsest ancestor under it
 //!                                    with sea bed on every side (OpaqueSea)
 //!     L's column meshed            → draw L
