@@ -141,14 +141,6 @@ struct Network {
     heighten: f64,
 }
 
-/// A [`Network`]'s noises at one column (the depth is read only where the
-/// column holds air).
-struct NetworkNoises {
-    swell: f64,
-    course: f64,
-    depth: f64,
-}
-
 /// A noise's sums at every direction of `directions` scaled by `scale`,
 /// each bit for bit [`Fractal::get`]'s: neighbouring columns lie in one
 /// lattice cell of these long wavelengths, and a batch hashes its corners
@@ -192,23 +184,29 @@ impl Network {
         (span - 1.0) / (2.0 * widest) < 1.0 && tallest - 0.5 * (span - 1.0) > 0.0
     }
 
-    /// This network's noises at direction `d`, one point at a time.
-    fn noises_at(&self, d: DVec3) -> NetworkNoises {
-        NetworkNoises {
-            swell: self.swell.get((d * self.swell_scale).to_array()),
-            course: self.course.get((d * self.course_scale).to_array()),
-            depth: self.depth.get((d * self.depth_scale).to_array()),
-        }
+    /// `w · wide` at its widest (the swell at 1) over a column whose
+    /// region weight is `region`: where the course noise's |n| is this or
+    /// more, no tunnel of this network passes over the column, whatever
+    /// its swell ([`Self::column`]'s `e` is at least 1: each operation
+    /// there rises with the swell, rounding included).
+    fn widest_reach(&self, region: f64) -> f64 {
+        self.width * ((1.0 + self.widen) * region)
     }
 
-    /// This network's air over a column with these `noises`, for voxels
-    /// `span` layers tall (`region` in `[0, 1]`): `(near, span in 1/64
-    /// layer)`.
-    fn column(&self, noises: NetworkNoises, region: f64, span: f64) -> (bool, [i16; 2]) {
-        let swell = noises.swell.clamp(0.0, 1.0);
+    /// This network's air over the column in unit direction `d` whose
+    /// course noise is `course` (`region` in `[0, 1]`), for voxels `span`
+    /// layers tall: `(near, span in 1/64 layer)`. The swell and depth
+    /// noises are read only where the course leaves a tunnel possible and
+    /// where the column then holds air (one column in several, and one in
+    /// many: a batch sums the course for all its columns, these at the few
+    /// that need them).
+    fn column(&self, d: DVec3, course: f64, region: f64, span: f64) -> (bool, [i16; 2]) {
+        if course.abs() >= self.widest_reach(region) {
+            return (false, [0, 0]);
+        }
+        let swell = self.swell.get((d * self.swell_scale).to_array()).clamp(0.0, 1.0);
         let wide = (1.0 + self.widen * swell) * region;
-        let n = noises.course;
-        let e = n.abs() / (self.width * wide);
+        let e = course.abs() / (self.width * wide);
         if e >= 1.0 || wide <= 0.0 {
             return (false, [0, 0]);
         }
@@ -217,9 +215,35 @@ impl Network {
         if e >= core || half <= 0.0 {
             return (true, [0, 0]);
         }
-        let centre = self.centre.0 + self.centre.1 * noises.depth.clamp(-1.0, 1.0);
+        let depth = self.depth.get((d * self.depth_scale).to_array());
+        let centre = self.centre.0 + self.centre.1 * depth.clamp(-1.0, 1.0);
         let units = |depth: f64| (depth * SPAN_UNITS).round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
         (true, [units(centre - half), units(centre + half)])
+    }
+
+    /// The course noise at unit `directions` (one batch over the run), as
+    /// [`Fractal::get`] gives it, where [`Self::column`] needs it; `None`
+    /// where its first octaves already put |n| past the widest reach
+    /// (`regions`, by direction): no tunnel, as the finished value would
+    /// show.
+    fn courses(&self, directions: &[DVec3], regions: &[f64]) -> Vec<Option<f64>> {
+        let points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * self.course_scale).to_array()).collect();
+        let mut batch = self.course.begin(&points);
+        let mut active: Vec<usize> = (0..points.len()).collect();
+        let mut courses = vec![None; points.len()];
+        while !batch.done(&self.course) {
+            self.course.step(&mut batch, &active);
+            active.retain(|&k| {
+                let (low, high) = self.course.bounds(&batch, k);
+                // A millionth spare for the rounding of the sums' scaling.
+                let reach = self.widest_reach(regions[k]) * (1.0 + 1e-6);
+                low <= reach && high >= -reach
+            });
+        }
+        for &k in &active {
+            courses[k] = Some(self.course.bounds(&batch, k).0);
+        }
+        courses
     }
 }
 
@@ -355,7 +379,8 @@ impl Caves {
             return caves;
         };
         for (network, span_out) in self.networks.iter().zip(&mut caves.spans) {
-            let (near, air) = network.column(network.noises_at(d), region, span);
+            let course = network.course.get((d * network.course_scale).to_array());
+            let (near, air) = network.column(d, course, region, span);
             caves.near |= near;
             *span_out = air;
         }
@@ -364,10 +389,12 @@ impl Caves {
 
     /// [`Self::column`] of every direction of `directions` (a chunk's
     /// columns, neighbours next to each other), equal to it column for
-    /// column: each noise is summed over the run in one batch, whose
-    /// lattice cells neighbouring columns share, instead of hashing a
-    /// cell's corners for every column and noise (13 % of a meshing
-    /// thread's time in a 1 km/s flight).
+    /// column: the region and course noises are summed over the run in
+    /// batches, whose lattice cells neighbouring columns share, instead of
+    /// hashing a cell's corners for every column and noise (13 % of a
+    /// meshing thread's time in a 1 km/s flight); a column's course stops
+    /// at the octave that shows no tunnel can pass over it, and its swell
+    /// and depth are read only where one can ([`Network::column`]).
     pub(crate) fn columns(&self, directions: &[DVec3], span: f64) -> Vec<ColumnCaves> {
         let mut caves = vec![ColumnCaves::NONE; directions.len()];
         if self.networks.is_empty() {
@@ -378,12 +405,10 @@ impl Caves {
             regions.into_iter().enumerate().filter_map(|(k, noise)| Some((k, region_weight(noise)?))).unzip();
         let open_directions: Vec<DVec3> = open.iter().map(|&k| directions[k]).collect();
         for (n, network) in self.networks.iter().enumerate() {
-            let swells = sums_at(&network.swell, network.swell_scale, &open_directions);
-            let courses = sums_at(&network.course, network.course_scale, &open_directions);
-            let depths = sums_at(&network.depth, network.depth_scale, &open_directions);
+            let courses = network.courses(&open_directions, &regions);
             for (j, &k) in open.iter().enumerate() {
-                let noises = NetworkNoises { swell: swells[j], course: courses[j], depth: depths[j] };
-                let (near, air) = network.column(noises, regions[j], span);
+                let Some(course) = courses[j] else { continue };
+                let (near, air) = network.column(open_directions[j], course, regions[j], span);
                 caves[k].near |= near;
                 caves[k].spans[n] = air;
             }
