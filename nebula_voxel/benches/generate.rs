@@ -79,6 +79,13 @@ fn generate(c: &mut Criterion) {
             );
         });
     }
+    // The voxels alone: the chunk's columns already in the height cache.
+    let key = mountain_chunk(&planet);
+    let mut voxels = ChunkVoxels::new(key);
+    planet.fill_chunk(key, &mut voxels).expect("valid key");
+    group.bench_with_input(BenchmarkId::new("fill_mountains_warm_lod", 0), &key, |b, &key| {
+        b.iter(|| planet.fill_chunk(key, &mut voxels).expect("valid key"));
+    });
     group.finish();
 
     // Every surface layer of one column, cold: what a streaming view asks

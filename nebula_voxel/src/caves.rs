@@ -193,18 +193,20 @@ impl Network {
         self.width * ((1.0 + self.widen) * region)
     }
 
+    /// Whether a tunnel of this network can pass over a column whose
+    /// course noise is `course` and region weight `region`, whatever its
+    /// swell: [`Self::column`] is asked only where one can.
+    fn may_pass(&self, course: f64, region: f64) -> bool {
+        course.abs() < self.widest_reach(region)
+    }
+
     /// This network's air over the column in unit direction `d` whose
-    /// course noise is `course` (`region` in `[0, 1]`), for voxels `span`
-    /// layers tall: `(near, span in 1/64 layer)`. The swell and depth
-    /// noises are read only where the course leaves a tunnel possible and
-    /// where the column then holds air (one column in several, and one in
-    /// many: a batch sums the course for all its columns, these at the few
-    /// that need them).
-    fn column(&self, d: DVec3, course: f64, region: f64, span: f64) -> (bool, [i16; 2]) {
-        if course.abs() >= self.widest_reach(region) {
-            return (false, [0, 0]);
-        }
-        let swell = self.swell.get((d * self.swell_scale).to_array()).clamp(0.0, 1.0);
+    /// course and swell noises are `course` and `swell` (`region` in
+    /// `[0, 1]`), for voxels `span` layers tall: `(near, span in 1/64
+    /// layer)`. The depth noise is read only where the column holds air
+    /// (a column in many).
+    fn column(&self, d: DVec3, course: f64, swell: f64, region: f64, span: f64) -> (bool, [i16; 2]) {
+        let swell = swell.clamp(0.0, 1.0);
         let wide = (1.0 + self.widen * swell) * region;
         let e = course.abs() / (self.width * wide);
         if e >= 1.0 || wide <= 0.0 {
@@ -221,16 +223,17 @@ impl Network {
         (true, [units(centre - half), units(centre + half)])
     }
 
-    /// The course noise at unit `directions` (one batch over the run), as
-    /// [`Fractal::get`] gives it, where [`Self::column`] needs it; `None`
-    /// where its first octaves already put |n| past the widest reach
-    /// (`regions`, by direction): no tunnel, as the finished value would
-    /// show.
-    fn courses(&self, directions: &[DVec3], regions: &[f64]) -> Vec<Option<f64>> {
+    /// The course and swell noises at unit `directions` where a tunnel
+    /// may pass ([`Self::may_pass`], `regions` by direction), each as
+    /// [`Fractal::get`] gives it; `None` elsewhere. Each noise is one batch
+    /// over the run; a column's course stops at the octave whose bounds
+    /// already put |n| past the widest reach, and its swell is summed only
+    /// where the finished course leaves a tunnel possible (a column in
+    /// several).
+    fn noises(&self, directions: &[DVec3], regions: &[f64]) -> Vec<Option<(f64, f64)>> {
         let points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * self.course_scale).to_array()).collect();
         let mut batch = self.course.begin(&points);
         let mut active: Vec<usize> = (0..points.len()).collect();
-        let mut courses = vec![None; points.len()];
         while !batch.done(&self.course) {
             self.course.step(&mut batch, &active);
             active.retain(|&k| {
@@ -240,10 +243,18 @@ impl Network {
                 low <= reach && high >= -reach
             });
         }
-        for &k in &active {
-            courses[k] = Some(self.course.bounds(&batch, k).0);
+        let courses: Vec<(usize, f64)> = active
+            .into_iter()
+            .map(|k| (k, self.course.bounds(&batch, k).0))
+            .filter(|&(k, course)| self.may_pass(course, regions[k]))
+            .collect();
+        let swell_directions: Vec<DVec3> = courses.iter().map(|&(k, _)| directions[k]).collect();
+        let swells = sums_at(&self.swell, self.swell_scale, &swell_directions);
+        let mut noises = vec![None; points.len()];
+        for (&(k, course), swell) in courses.iter().zip(swells) {
+            noises[k] = Some((course, swell));
         }
-        courses
+        noises
     }
 }
 
@@ -380,7 +391,11 @@ impl Caves {
         };
         for (network, span_out) in self.networks.iter().zip(&mut caves.spans) {
             let course = network.course.get((d * network.course_scale).to_array());
-            let (near, air) = network.column(d, course, region, span);
+            if !network.may_pass(course, region) {
+                continue;
+            }
+            let swell = network.swell.get((d * network.swell_scale).to_array());
+            let (near, air) = network.column(d, course, swell, region, span);
             caves.near |= near;
             *span_out = air;
         }
@@ -394,7 +409,7 @@ impl Caves {
     /// hashing a cell's corners for every column and noise (13 % of a
     /// meshing thread's time in a 1 km/s flight); a column's course stops
     /// at the octave that shows no tunnel can pass over it, and its swell
-    /// and depth are read only where one can ([`Network::column`]).
+    /// and depth are read only where one can ([`Network::noises`]).
     pub(crate) fn columns(&self, directions: &[DVec3], span: f64) -> Vec<ColumnCaves> {
         let mut caves = vec![ColumnCaves::NONE; directions.len()];
         if self.networks.is_empty() {
@@ -405,10 +420,10 @@ impl Caves {
             regions.into_iter().enumerate().filter_map(|(k, noise)| Some((k, region_weight(noise)?))).unzip();
         let open_directions: Vec<DVec3> = open.iter().map(|&k| directions[k]).collect();
         for (n, network) in self.networks.iter().enumerate() {
-            let courses = network.courses(&open_directions, &regions);
+            let noises = network.noises(&open_directions, &regions);
             for (j, &k) in open.iter().enumerate() {
-                let Some(course) = courses[j] else { continue };
-                let (near, air) = network.column(open_directions[j], course, regions[j], span);
+                let Some((course, swell)) = noises[j] else { continue };
+                let (near, air) = network.column(open_directions[j], course, swell, regions[j], span);
                 caves[k].near |= near;
                 caves[k].spans[n] = air;
             }
