@@ -298,8 +298,11 @@ struct SurfaceThresholds {
     /// Heights, metres: the snow line, bare rock, sea level, the shore,
     /// the tree line.
     heights: [f64; 5],
-    /// Continents sums: the deserts' edge, the forests' edge.
-    continents: [f64; 2],
+    /// Continents sums: the deserts' edge, the forests' edge, each as a
+    /// range `(low, high)` that holds it (one value where known exactly:
+    /// a chunk's columns share ranges over their latitudes, which decide
+    /// alike for any sum outside them; `ProceduralPlanet::surface`).
+    continents: [(f64, f64); 2],
     /// The mountains term above which rock is bare.
     mountains: f64,
 }
@@ -829,7 +832,7 @@ impl ProceduralPlanet {
         let mut ridged: Vec<usize> = open.clone();
         // The material thresholds by column, once (each look used them; two
         // `exp`s and an `asin` a look were 8 % of a LOD-0 chunk).
-        let thresholds: Vec<SurfaceThresholds> = directions.iter().map(|d| self.surface_thresholds(d.z)).collect();
+        let thresholds = self.surface_thresholds_over(directions);
         // A look costs about what an octave does: none before the octaves
         // left could, even at best, leave a voxel's height of room (the fBm
         // sums' rest through `combine`'s least slopes), then every other
@@ -925,7 +928,10 @@ impl ProceduralPlanet {
         let between = |t: f64, low: f64, high: f64| low - ROUNDING <= t && t <= high + ROUNDING;
         let [least, most] = climates;
         if thresholds.heights.iter().any(|&t| between(t, low, high))
-            || thresholds.continents.iter().any(|&t| between(t, least.continents, most.continents))
+            || thresholds
+                .continents
+                .iter()
+                .any(|&(t_low, t_high)| t_low - ROUNDING <= most.continents && least.continents <= t_high + ROUNDING)
             || between(thresholds.mountains, least.mountains, most.mountains)
         {
             return true;
@@ -1016,13 +1022,54 @@ impl ProceduralPlanet {
 
     /// Where [`Self::surface`] changes its answer at `sin_latitude`.
     fn surface_thresholds(&self, sin_latitude: f64) -> SurfaceThresholds {
+        let latitude = latitude_degrees(sin_latitude);
+        let bell = |centre: f64, width: f64| {
+            let value = bell(latitude, centre, width);
+            (value, value)
+        };
+        self.thresholds_with(sin_latitude, [bell(24.0, 9.0), bell(0.0, 12.0), bell(52.0, 10.0)])
+    }
+
+    /// [`Self::surface_thresholds`] at each unit direction of
+    /// `directions` (a chunk's columns), with the climate's edges as
+    /// ranges over all their latitudes: a chunk spans a fraction of a
+    /// degree, so the ranges are narrow and decide the material alike
+    /// almost everywhere, for six `exp`s a chunk instead of three a column
+    /// (8 % of a LOD-0 chunk's generation).
+    fn surface_thresholds_over(&self, directions: &[nebula_math::DVec3]) -> Vec<SurfaceThresholds> {
+        let (least, most) = directions
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(least, most), d| (least.min(d.z.abs()), most.max(d.z.abs())));
+        if least > most {
+            return Vec::new();
+        }
+        // A billionth of a degree and a trillionth of a bell spare for
+        // rounding: each bell is highest at its centre (or the latitude
+        // nearest it) and lowest at one of the ends.
+        let (low, high) = (latitude_degrees(least) - 1e-9, latitude_degrees(most) + 1e-9);
+        let range = |centre: f64, width: f64| {
+            let lowest = bell(low, centre, width).min(bell(high, centre, width));
+            (lowest - 1e-12, bell(centre.clamp(low, high), centre, width) + 1e-12)
+        };
+        let bells = [range(24.0, 9.0), range(0.0, 12.0), range(52.0, 10.0)];
+        // Over a coarse chunk (kilometres) wide ranges would keep columns
+        // whose sums lie in them open to the last octave: there each
+        // column's own are worth their `exp`s.
+        if bells.iter().any(|(low, high)| high - low > MAX_SHARED_BELL_RANGE) {
+            return directions.iter().map(|d| self.surface_thresholds(d.z)).collect();
+        }
+        directions.iter().map(|d| self.thresholds_with(d.z, bells)).collect()
+    }
+
+    /// The thresholds at `sin_latitude` whose climate bells (the deserts'
+    /// at 24°, the wet belts' at 0° and 52°) lie in these ranges.
+    fn thresholds_with(&self, sin_latitude: f64, [desert, tropics, temperate]: [(f64, f64); 3]) -> SurfaceThresholds {
         let amplitude = self.settings.amplitude;
-        let latitude = sin_latitude.abs().min(1.0).asin().to_degrees();
-        let bell = |centre: f64, width: f64| (-((latitude - centre) / width).powi(2)).exp();
         // Deserts under the subtropical highs, inland; forests where it
-        // rains, in the tropics and the temperate belt, from the coasts.
-        let desert_from = DESERT_INLAND - bell(24.0, 9.0);
-        let forest_below = FOREST_INLAND * bell(0.0, 12.0).max(bell(52.0, 10.0)) - 0.1;
+        // rains, in the tropics and the temperate belt, from the coasts
+        // (each rises with its bells: their ranges give theirs).
+        let desert_from = |bell: f64| DESERT_INLAND - bell;
+        let forest_below = |tropics: f64, temperate: f64| FOREST_INLAND * tropics.max(temperate) - 0.1;
         SurfaceThresholds {
             heights: [
                 self.snow_line(sin_latitude),
@@ -1031,7 +1078,10 @@ impl ProceduralPlanet {
                 (0.001 * amplitude).max(2.0 * self.layer_height),
                 TREE_LINE * amplitude,
             ],
-            continents: [desert_from, forest_below],
+            continents: [
+                (desert_from(desert.1), desert_from(desert.0)),
+                (forest_below(tropics.0, temperate.0), forest_below(tropics.1, temperate.1)),
+            ],
             mountains: ROCKY_MOUNTAINS,
         }
     }
@@ -1043,11 +1093,22 @@ impl ProceduralPlanet {
     /// column does not know), sand at the shore and in the subtropical
     /// deserts inland, forest in the wet belts (tropical and temperate)
     /// below the tree line, grass elsewhere.
-    /// `thresholds` are [`Self::surface_thresholds`] at its latitude.
+    /// `thresholds` are [`Self::surface_thresholds`] at its latitude, or
+    /// ranges that hold them: where the continents sum lies within a
+    /// range, the exact ones are found.
     fn surface(&self, height_m: f64, climate: Climate, thresholds: &SurfaceThresholds) -> Voxel {
+        let within = |(low, high): (f64, f64)| low < high && (low..=high).contains(&climate.continents);
+        let exact;
+        let thresholds = if thresholds.continents.into_iter().any(within) {
+            exact = self.surface_thresholds(climate.sin_latitude);
+            &exact
+        } else {
+            thresholds
+        };
         let SurfaceThresholds { heights: [snow_line, bare_rock, sea_level, shore, tree_line], continents, mountains } =
             *thresholds;
-        let [desert_from, forest_below] = continents;
+        // Outside a range, either end of it decides as the edge would.
+        let [(desert_from, _), (forest_below, _)] = continents;
         if height_m > snow_line {
             Voxel::SNOW
         } else if height_m < sea_level {
@@ -1319,6 +1380,22 @@ const ROCKY_MOUNTAINS: f64 = 0.3;
 /// subtropical bell; and below which it is forest, times the wet belts'.
 const DESERT_INLAND: f64 = 1.2;
 const FOREST_INLAND: f64 = 0.5;
+
+/// The widest range of a climate bell a chunk's columns share
+/// (`ProceduralPlanet::surface_thresholds_over`): a LOD-0 chunk's are
+/// about 3·10⁻⁵ wide, so few columns' sums fall in them.
+const MAX_SHARED_BELL_RANGE: f64 = 1e-4;
+
+/// Degrees of latitude at `sin_latitude` (either hemisphere alike).
+fn latitude_degrees(sin_latitude: f64) -> f64 {
+    sin_latitude.abs().min(1.0).asin().to_degrees()
+}
+
+/// A climate belt's bell at `latitude` degrees: 1 at `centre`, falling
+/// over `width` degrees.
+fn bell(latitude: f64, centre: f64, width: f64) -> f64 {
+    (-((latitude - centre) / width).powi(2)).exp()
+}
 
 /// H per unit of the continents sum below sea level (ocean depth), and
 /// above it (lowland height), shares of the amplitude: the land rises
@@ -1699,6 +1776,51 @@ mod tests {
             println!("share of columns to the last octave, LODs 0, 2, 7, 12: {exact_share:.2?}");
             assert!(exact_share[2] < 0.5 && exact_share[3] < 0.5, "coarse columns should leave early: {exact_share:?}");
         }
+    }
+
+    /// A chunk's shared climate ranges decide every column's material as
+    /// its own edges do, right at the edges too (where a range holds the
+    /// continents sum, the exact edge is found), over random LOD-0 to
+    /// LOD-2 chunks of an Earth; the ranges are in use at most of them.
+    #[test]
+    fn shared_climate_ranges_decide_as_each_columns_own_edges() {
+        let planet = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
+        let amplitude = planet.settings.amplitude;
+        let mut state = 0x5eed_u64;
+        let mut shared_chunks = 0;
+        for n in 0..120 {
+            let face = CubeFace::ALL[n % 6];
+            let lod = (n % 3) as u8;
+            let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
+            let mut at = || (nebula_math::unit_random(&mut state) * (per_edge - 34) as f64) as i64;
+            let (i0, j0) = (at(), at());
+            let directions: Vec<_> =
+                (0..34 * 34).map(|k| planet.layout.sample_direction(face, lod, i0 + k % 34, j0 + k / 34)).collect();
+            let ranged = planet.surface_thresholds_over(&directions);
+            let mut shared = false;
+            for (d, ranged) in directions.iter().zip(&ranged) {
+                let exact = planet.surface_thresholds(d.z);
+                shared |= ranged.continents != exact.continents;
+                let [(desert, _), (forest, _)] = exact.continents;
+                let [(desert_low, desert_high), (forest_low, forest_high)] = ranged.continents;
+                for continents in [desert, forest, desert_low, desert_high, forest_low, forest_high]
+                    .into_iter()
+                    .flat_map(|c| [c.next_down(), c, c.next_up()])
+                {
+                    for height_m in [0.1 * amplitude, 0.3 * amplitude] {
+                        let climate = Climate { sin_latitude: d.z, continents, mountains: 0.0 };
+                        assert_eq!(
+                            planet.surface(height_m, climate, ranged),
+                            planet.surface(height_m, climate, &exact),
+                            "{continents} at {height_m} m against {:?}",
+                            exact.continents
+                        );
+                    }
+                }
+            }
+            shared_chunks += usize::from(shared);
+        }
+        assert!(shared_chunks >= 60, "the ranges were shared at {shared_chunks} chunks of 120");
     }
 
     /// The octave grids move the terrain by little against every octave at
