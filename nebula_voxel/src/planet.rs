@@ -809,18 +809,12 @@ impl ProceduralPlanet {
             vec![ColumnCaves::NONE; directions.len()]
         };
         let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
-        let fractals = [&self.continents, &self.ridges, &self.hills];
         let [continents, ridges, hills] = &resumed;
         let mut batches = [
             self.continents.resume(&points(self.noise_scale), &continents.1, continents.0),
             self.ridges.resume(&points(self.ridge_scale), &ridges.1, ridges.0),
             self.hills.resume(&points(self.detail_scale), &hills.1, hills.0),
         ];
-        let starts = [continents.0, ridges.0, hills.0];
-        // At least one round, so that columns whose every octave came from
-        // grids are finished too.
-        let rounds =
-            fractals.iter().zip(starts).map(|(f, start)| f.octaves().saturating_sub(start)).max().unwrap_or(0).max(1);
         let mut columns = vec![Column::UNKNOWN; directions.len()];
         let mut open: Vec<usize> = (0..directions.len()).collect();
         // The columns whose ridges can still matter. Where the continents
@@ -833,19 +827,14 @@ impl ProceduralPlanet {
         // The material thresholds by column, once (each look used them; two
         // `exp`s and an `asin` a look were 8 % of a LOD-0 chunk).
         let thresholds = self.surface_thresholds_over(directions);
-        // A look costs about what an octave does: none before the octaves
-        // left could, even at best, leave a voxel's height of room (the fBm
-        // sums' rest through `combine`'s least slopes), then every other
-        // octave.
         let voxel_m = span * self.layer_height;
-        let first_look = (1..=rounds)
-            .find(|&round| {
-                let best = 2.0 * self.settings.amplitude * LAND_SLOPE * self.continents.fbm_rest(starts[0] + round)
-                    + self.settings.detail_amplitude * self.hills.fbm_rest(starts[2] + round);
-                best < voxel_m
-            })
-            .unwrap_or(rounds);
-        for round in 1..=rounds {
+        let (amplitude, detail_amplitude) = (self.settings.amplitude, self.settings.detail_amplitude);
+        // Looks are counted from the first round whose octaves left could,
+        // even at best, leave a voxel's height of room (the fBm sums' rest
+        // through `combine`'s least slopes): a look costs about what an
+        // octave does, so there is one then and every other round after.
+        let mut eligible_rounds = 0_usize;
+        loop {
             let [continents, ridges, hills] = &mut batches;
             self.continents.step(continents, &open);
             // The continents' bounds only narrow as octaves come in (each
@@ -858,10 +847,31 @@ impl ProceduralPlanet {
                 columns[k].height.is_nan() && self.continents.bounds(continents, k).1 > MOUNTAIN_START - 1e-6
             });
             self.ridges.step(ridges, &ridged);
-            self.hills.step(hills, &open);
-            let last = round == rounds;
-            if !last && (round < first_look || (round - first_look) % 2 == 1) {
-                continue;
+            // The hills' octaves wait while the continents' still to come
+            // can move H four times as far as theirs (through `combine`'s
+            // steepest slope, and the hills' roughest where a column may
+            // rise into mountains): a column decided meanwhile never needs
+            // them, as most of a coarse chunk's are (its voxels are
+            // hundreds of metres tall; a plain's hills, tens). Which sums
+            // are stepped changes no voxel: the looks go by the bounds.
+            let roughest = if ridged.is_empty() { 1.0 } else { 1.0 + MOUNTAIN_ROUGHNESS };
+            let continents_left = amplitude * OCEAN_SLOPE * self.continents.fbm_rest(continents.octave());
+            let hills_left = detail_amplitude * roughest * self.hills.fbm_rest(hills.octave());
+            if 4.0 * hills_left >= continents_left || continents.done(&self.continents) {
+                self.hills.step(hills, &open);
+            }
+            let last =
+                batches[0].done(&self.continents) && batches[1].done(&self.ridges) && batches[2].done(&self.hills);
+            if !last {
+                let best = 2.0 * amplitude * LAND_SLOPE * self.continents.fbm_rest(batches[0].octave())
+                    + detail_amplitude * self.hills.fbm_rest(batches[2].octave());
+                if best >= voxel_m {
+                    continue;
+                }
+                eligible_rounds += 1;
+                if eligible_rounds.is_multiple_of(2) {
+                    continue;
+                }
             }
             let continents_spread = voxel_m / (LAND_SLOPE * self.settings.amplitude);
             open.retain(|&k| {
@@ -903,7 +913,8 @@ impl ProceduralPlanet {
                 columns[k] = Column { slack, caves: caves[k], ..self.sample(height, climate, &thresholds[k]) };
                 false
             });
-            if open.is_empty() {
+            // At the last octave every column is decided.
+            if open.is_empty() || last {
                 break;
             }
         }
