@@ -307,6 +307,13 @@ struct SurfaceThresholds {
     mountains: f64,
 }
 
+impl SurfaceThresholds {
+    /// Whether the climate's edges are the column's own, not ranges.
+    fn exact(&self) -> bool {
+        self.continents.iter().all(|(low, high)| low == high)
+    }
+}
+
 /// Ranges `(low, high)` of the three noise sums of [`ProceduralPlanet::combine`]
 /// over some place.
 #[derive(Clone, Copy, Debug)]
@@ -826,7 +833,7 @@ impl ProceduralPlanet {
         let mut ridged: Vec<usize> = open.clone();
         // The material thresholds by column, once (each look used them; two
         // `exp`s and an `asin` a look were 8 % of a LOD-0 chunk).
-        let thresholds = self.surface_thresholds_over(directions);
+        let mut thresholds = self.surface_thresholds_over(directions);
         let voxel_m = span * self.layer_height;
         let (amplitude, detail_amplitude) = (self.settings.amplitude, self.settings.detail_amplitude);
         // Looks are counted from the first round whose octaves left could,
@@ -893,7 +900,16 @@ impl ProceduralPlanet {
                 let climates = [(c_low, self.mountains(c_low, r_low)), (c_high, self.mountains(c_high, r_high))]
                     .map(|(continents, mountains)| Climate { sin_latitude: directions[k].z, continents, mountains });
                 if !last && self.undecided(low, high, climates, &thresholds[k], span) {
-                    return true;
+                    // The chunk's shared climate ranges hold the column's
+                    // own edges: where they leave it open, its own may not
+                    // (over a coarse chunk they span degrees).
+                    if thresholds[k].exact() {
+                        return true;
+                    }
+                    thresholds[k] = self.surface_thresholds(directions[k].z);
+                    if self.undecided(low, high, climates, &thresholds[k], span) {
+                        return true;
+                    }
                 }
                 let height = if last { low } else { 0.5 * (low + high) };
                 // Where no threshold lies between the ends, the middle
@@ -1044,9 +1060,11 @@ impl ProceduralPlanet {
     /// [`Self::surface_thresholds`] at each unit direction of
     /// `directions` (a chunk's columns), with the climate's edges as
     /// ranges over all their latitudes: a chunk spans a fraction of a
-    /// degree, so the ranges are narrow and decide the material alike
-    /// almost everywhere, for six `exp`s a chunk instead of three a column
-    /// (8 % of a LOD-0 chunk's generation).
+    /// degree (a LOD-0 chunk's ranges are about 3·10⁻⁵ wide), so the
+    /// ranges decide the material alike almost everywhere, for six `exp`s
+    /// a chunk instead of three a column (8–10 % of a chunk's generation);
+    /// a column whose sums meet a range looks up its own edges
+    /// ([`SurfaceThresholds::exact`]; `columns_at`, `surface`).
     fn surface_thresholds_over(&self, directions: &[nebula_math::DVec3]) -> Vec<SurfaceThresholds> {
         let (least, most) = directions
             .iter()
@@ -1063,12 +1081,6 @@ impl ProceduralPlanet {
             (lowest - 1e-12, bell(centre.clamp(low, high), centre, width) + 1e-12)
         };
         let bells = [range(24.0, 9.0), range(0.0, 12.0), range(52.0, 10.0)];
-        // Over a coarse chunk (kilometres) wide ranges would keep columns
-        // whose sums lie in them open to the last octave: there each
-        // column's own are worth their `exp`s.
-        if bells.iter().any(|(low, high)| high - low > MAX_SHARED_BELL_RANGE) {
-            return directions.iter().map(|d| self.surface_thresholds(d.z)).collect();
-        }
         directions.iter().map(|d| self.thresholds_with(d.z, bells)).collect()
     }
 
@@ -1391,11 +1403,6 @@ const ROCKY_MOUNTAINS: f64 = 0.3;
 /// subtropical bell; and below which it is forest, times the wet belts'.
 const DESERT_INLAND: f64 = 1.2;
 const FOREST_INLAND: f64 = 0.5;
-
-/// The widest range of a climate bell a chunk's columns share
-/// (`ProceduralPlanet::surface_thresholds_over`): a LOD-0 chunk's are
-/// about 3·10⁻⁵ wide, so few columns' sums fall in them.
-const MAX_SHARED_BELL_RANGE: f64 = 1e-4;
 
 /// Degrees of latitude at `sin_latitude` (either hemisphere alike).
 fn latitude_degrees(sin_latitude: f64) -> f64 {
