@@ -831,8 +831,9 @@ impl ProceduralPlanet {
         // column's ridges stop at the octave that shows it (most of a
         // planet's lowland and sea; 16 of an Earth column's 44 octaves).
         let mut ridged: Vec<usize> = open.clone();
-        // The material thresholds by column, once (each look used them; two
-        // `exp`s and an `asin` a look were 8 % of a LOD-0 chunk).
+        // The material thresholds by column, once (each look uses them),
+        // with the chunk's shared climate ranges until a column needs its
+        // own edges.
         let mut thresholds = self.surface_thresholds_over(directions);
         let voxel_m = span * self.layer_height;
         let (amplitude, detail_amplitude) = (self.settings.amplitude, self.settings.detail_amplitude);
@@ -1069,8 +1070,9 @@ impl ProceduralPlanet {
         let (least, most) = directions
             .iter()
             .fold((f64::INFINITY, 0.0_f64), |(least, most), d| (least.min(d.z.abs()), most.max(d.z.abs())));
+        // None (or not a number): each its own.
         if least > most {
-            return Vec::new();
+            return directions.iter().map(|d| self.surface_thresholds(d.z)).collect();
         }
         // A billionth of a degree and a trillionth of a bell spare for
         // rounding: each bell is highest at its centre (or the latitude
@@ -1798,8 +1800,9 @@ mod tests {
 
     /// A chunk's shared climate ranges decide every column's material as
     /// its own edges do, right at the edges too (where a range holds the
-    /// continents sum, the exact edge is found), over random LOD-0 to
-    /// LOD-2 chunks of an Earth; the ranges are in use at most of them.
+    /// continents sum, the exact edge is found), over random chunks of an
+    /// Earth at LODs 0 to 8 (a LOD-0 chunk's ranges are about 3·10⁻⁵ wide,
+    /// a LOD-8 chunk's span a degree); the ranges are in use at most.
     #[test]
     fn shared_climate_ranges_decide_as_each_columns_own_edges() {
         let planet = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
@@ -1808,7 +1811,7 @@ mod tests {
         let mut shared_chunks = 0;
         for n in 0..120 {
             let face = CubeFace::ALL[n % 6];
-            let lod = (n % 3) as u8;
+            let lod = (n % 9) as u8;
             let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
             let mut at = || (nebula_math::unit_random(&mut state) * (per_edge - 34) as f64) as i64;
             let (i0, j0) = (at(), at());
