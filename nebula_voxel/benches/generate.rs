@@ -71,6 +71,7 @@ fn generate(c: &mut Criterion) {
     group.throughput(Throughput::Elements(32 * 32 * 32));
     let cases = [
         ("fill_lod", &planet, 0u8, surface_chunk(&planet, CubeFace::PosZ, 0, 5, 7)),
+        ("fill_lod", &planet, 2, surface_chunk(&planet, CubeFace::PosZ, 2, 5, 7)),
         ("fill_lod", &planet, 5, surface_chunk(&planet, CubeFace::PosZ, 5, 5, 7)),
         ("fill_lod", &planet, 8, surface_chunk(&planet, CubeFace::PosZ, 8, 5, 7)),
         ("fill_mountains_lod", &planet, 0, mountain_chunk(&planet)),

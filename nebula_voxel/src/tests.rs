@@ -1119,6 +1119,41 @@ fn cave_voxels(planet: &ProceduralPlanet, count: usize, seed: u64) -> Vec<VoxelC
     found
 }
 
+/// Chunks holding cave air equal their voxels read column by column (each
+/// column alone, every octave in) at LODs 0–3 of an Earth: the batch that
+/// fills a chunk (its caves' noises stopped early, its columns decided
+/// before their last octave where no threshold is near) puts the air
+/// where a lone column does. (With columns under a tunnel decided as any
+/// other, their air's depths not among the thresholds, chunks differ.)
+#[test]
+fn chunks_around_caves_equal_their_voxels_read_column_by_column() {
+    let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let layout = *planet.layout();
+    let (mut compared, mut air) = (0, 0);
+    for at in cave_voxels(&planet, 4, 0xca7e) {
+        for lod in 0..=3u8 {
+            let coarse = VoxelCoord { lod, i: at.i >> lod, j: at.j >> lod, h: at.h >> lod, ..at };
+            let key = layout.chunk_of(coarse);
+            let mut voxels = ChunkVoxels::new(key);
+            planet.with_empty_cache().fill_chunk(key, &mut voxels).unwrap();
+            for (x, z) in (0..32u32).flat_map(|x| (0..32u32).map(move |z| (x, z))) {
+                let bottom =
+                    VoxelCoord { face: key.face, lod, i: key.x * 32 + x, j: key.y * 32 + z, h: key.layer * 32 };
+                let mut column = [Voxel::AIR; 32];
+                planet.column_voxels(bottom, &mut column).unwrap();
+                for (y, voxel) in column.iter().enumerate() {
+                    assert_eq!(voxels.get([x + 1, y as u32 + 1, z + 1]), Some(*voxel), "{bottom:?} + {y}");
+                }
+                compared += 1;
+                // Air under rock: a cave.
+                air += column.windows(2).filter(|w| !w[0].is_solid() && w[1].is_solid()).count();
+            }
+        }
+    }
+    println!("{compared} columns compared, {air} cave ceilings among them");
+    assert!(air > 0, "no cave in the chunks compared");
+}
+
 /// The LOD rule for caves (module docs of `caves.rs`): a coarse voxel is
 /// cave air only in a tunnel's core. Against the majority of the LOD-0
 /// voxels it stands for, the core rule leaves far fewer coarse voxels air
