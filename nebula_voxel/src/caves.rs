@@ -226,31 +226,19 @@ impl Network {
     /// The course and swell noises at unit `directions` where a tunnel
     /// may pass ([`Self::may_pass`], `regions` by direction), each as
     /// [`Fractal::get`] gives it; `None` elsewhere. Each noise is one batch
-    /// over the run; a column's course stops at the octave whose bounds
-    /// already put |n| past the widest reach, and its swell is summed only
-    /// where the finished course leaves a tunnel possible (a column in
-    /// several).
+    /// over the run, the swell's only over the columns the course leaves a
+    /// tunnel possible at (about one in twenty at LOD 0). (Stopping each
+    /// column's course at the octave whose bounds rule a tunnel out cost
+    /// as much as it saved: the second octave's batch broke up.)
     fn noises(&self, directions: &[DVec3], regions: &[f64]) -> Vec<Option<(f64, f64)>> {
-        let points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * self.course_scale).to_array()).collect();
-        let mut batch = self.course.begin(&points);
-        let mut active: Vec<usize> = (0..points.len()).collect();
-        while !batch.done(&self.course) {
-            self.course.step(&mut batch, &active);
-            active.retain(|&k| {
-                let (low, high) = self.course.bounds(&batch, k);
-                // A millionth spare for the rounding of the sums' scaling.
-                let reach = self.widest_reach(regions[k]) * (1.0 + 1e-6);
-                low <= reach && high >= -reach
-            });
-        }
-        let courses: Vec<(usize, f64)> = active
+        let courses: Vec<(usize, f64)> = sums_at(&self.course, self.course_scale, directions)
             .into_iter()
-            .map(|k| (k, self.course.bounds(&batch, k).0))
+            .enumerate()
             .filter(|&(k, course)| self.may_pass(course, regions[k]))
             .collect();
         let swell_directions: Vec<DVec3> = courses.iter().map(|&(k, _)| directions[k]).collect();
         let swells = sums_at(&self.swell, self.swell_scale, &swell_directions);
-        let mut noises = vec![None; points.len()];
+        let mut noises = vec![None; directions.len()];
         for (&(k, course), swell) in courses.iter().zip(swells) {
             noises[k] = Some((course, swell));
         }
@@ -407,9 +395,9 @@ impl Caves {
     /// column: the region and course noises are summed over the run in
     /// batches, whose lattice cells neighbouring columns share, instead of
     /// hashing a cell's corners for every column and noise (13 % of a
-    /// meshing thread's time in a 1 km/s flight); a column's course stops
-    /// at the octave that shows no tunnel can pass over it, and its swell
-    /// and depth are read only where one can ([`Network::noises`]).
+    /// meshing thread's time in a 1 km/s flight); a column's swell and
+    /// depth are read only where its course lets a tunnel pass
+    /// ([`Network::noises`]).
     pub(crate) fn columns(&self, directions: &[DVec3], span: f64) -> Vec<ColumnCaves> {
         let mut caves = vec![ColumnCaves::NONE; directions.len()];
         if self.networks.is_empty() {
