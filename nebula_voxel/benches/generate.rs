@@ -33,11 +33,11 @@
 //! the same run): LOD 0 451 → 272 µs, under the mountain flight 431 →
 //! 263 µs (1.6–1.7×), LOD 8 unchanged (its columns are nodes of every
 //! grid: 324 µs).
-//! The caves' course noise stopped where no tunnel can pass and their
-//! swell summed in one batch only where one can, and the climate belts'
-//! bells shared by a LOD-0 chunk's columns (the same voxels), against the
-//! build before in the same session: LOD 0 290 → 236 µs, under the
-//! mountain flight 276 → 218 µs, LOD 8 327 µs either way.
+//! The caves' swell summed in one batch only where the course lets a
+//! tunnel pass, and the climate belts' bells shared by a chunk's columns
+//! (the same voxels), against the session's first build: LOD 0
+//! 290 → 236 µs, under the mountain flight 276 → 209 µs, LOD 8 327 µs
+//! either way.
 //! `fill_mountains_warm_lod` is the fill alone, the columns cached: 23 µs.
 //! The hills' octaves after the continents' (a coarse column is mostly
 //! decided before the hills' later octaves count): LOD 5 288 → 261–270 µs,
