@@ -198,9 +198,29 @@ impl ChunkMesher {
         let floors = self.sky_floors;
         let (low, high) = (1 + self.plug_margin, PADDED_CHUNK_SIZE - 1 - self.plug_margin);
         let slice = voxels.as_mut_slice();
+        // The columns with air under their floor (within the margin): the
+        // only ones with anything to fill, found row by row as the voxels
+        // are stored (the rows vectorise; most chunks have none, and
+        // walking each column up to its floor was most of the cost).
+        let mut dark = [0_u8; PADDED_COLUMNS];
+        let (start, end) = (low as usize, high as usize);
+        for z in start..end {
+            let columns = z * PADDED_CHUNK_SIZE as usize;
+            let (dark, floors) = (&mut dark[columns + start..columns + end], &floors[columns + start..columns + end]);
+            for y in start..end {
+                let row = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
+                let voxels = &slice[row + start..row + end];
+                for ((dark, floor), voxel) in dark.iter_mut().zip(floors).zip(voxels) {
+                    *dark |= u8::from(voxel.material() == Voxel::AIR.material()) & u8::from((y as u8) < *floor);
+                }
+            }
+        }
         let mut filled = 0;
         for z in low..high {
             for x in low..high {
+                if dark[(x + PADDED_CHUNK_SIZE * z) as usize] == 0 {
+                    continue;
+                }
                 let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(high);
                 // The rock of the nearest solid voxel below, else of the
                 // nearest above (the roof over dark air at the chunk's foot).

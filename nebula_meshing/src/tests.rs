@@ -6,8 +6,8 @@ use std::sync::OnceLock;
 
 use nebula_math::{CubeFace, DVec3, LatticePoint};
 use nebula_voxel::{
-    ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PlanetSettings, ProceduralPlanet, SurfaceBounds, Voxel,
-    VoxelCoord, VoxelError, VoxelSource,
+    ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PlanetSettings, ProceduralPlanet,
+    SurfaceBounds, Voxel, VoxelCoord, VoxelError, VoxelSource,
 };
 use proptest::prelude::*;
 
@@ -516,6 +516,42 @@ proptest! {
         let mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
         prop_assert!(!mesh.has_t_junctions());
         prop_assert!(interior_edge_balance(&mesh).is_empty(), "open edges inside the plugged chunk");
+    }
+
+    /// Plugging leaves no dark air: within the margin, no air remains
+    /// under any column's sky floor (as the plugged chunk's own floors
+    /// say) except in a column with no rock to fill it with; and it fills
+    /// nothing else (every voxel it changed was air, now solid, and is a
+    /// plug).
+    #[test]
+    fn plugging_leaves_no_dark_air(bits in proptest::collection::vec(any::<u8>(), 34 * 34 * 34), density in 0u8..=255) {
+        let before = random_chunk(&bits, density);
+        let mut voxels = before.clone();
+        let mut mesher = ChunkMesher::new();
+        let filled = mesher.plug_dark_air(&mut voxels);
+        let floors = before.sky_floors();
+        let (low, high) = (1 + mesher::PLUG_MARGIN, PADDED_CHUNK_SIZE - 1 - mesher::PLUG_MARGIN);
+        let mut changed = 0;
+        for (index, (old, new)) in before.as_slice().iter().zip(voxels.as_slice()).enumerate() {
+            if old != new {
+                prop_assert!(!old.is_solid() && new.is_solid(), "voxel {index} went from {old:?} to {new:?}");
+                changed += 1;
+            }
+        }
+        prop_assert_eq!(changed, filled);
+        for z in low..high {
+            for x in low..high {
+                let column: Vec<Voxel> =
+                    (0..PADDED_CHUNK_SIZE).map(|y| voxels.get([x, y, z]).unwrap()).collect();
+                if !column.iter().any(|v| v.is_solid()) {
+                    continue;
+                }
+                let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(high);
+                for y in low..floor {
+                    prop_assert!(column[y as usize].is_solid(), "dark air left at ({x}, {y}, {z}) under floor {floor}");
+                }
+            }
+        }
     }
 
     /// Two same-LOD neighbours, also across cube-face edges and at corners,
