@@ -1456,6 +1456,17 @@ mod streaming {
             bounds_panics: AtomicUsize::new(3),
         });
         let mut streamer = Streamer::new(flaky.clone(), lod, camera, 2, &mut { upload }).unwrap();
+        // Without the terrain's horizon, in both views compared: with it
+        // the settled triangles depend on the order meshes came in (a
+        // leaf meshed before the ground in front hid it holds its mesh
+        // and counts as an occluder; one never meshed does not), so two
+        // fresh views of this camera settled at 178,463, 178,628 and
+        // 178,839 triangles under a loaded machine (what differs is what
+        // the horizon draws coarse: the render tests find it changes no
+        // pixel). That is the horizon's fault to mend, not the failing
+        // chunks': this test is about the latter.
+        let no_terrain_horizon = crate::stream::DrawOptions { terrain_occlusion: false, ..Default::default() };
+        streamer.set_draw_options(no_terrain_horizon);
         let triangles = settle(&mut streamer, camera);
         assert_eq!(flaky.panics.load(Ordering::SeqCst), 0, "the source never panicked: the check cannot tell");
         assert_eq!(flaky.bounds_panics.load(Ordering::SeqCst), 0, "the bounds never panicked");
@@ -1479,6 +1490,7 @@ mod streaming {
         }
         let plain = Arc::new(planet());
         let mut reference = Streamer::new(plain, lod, camera, 2, &mut { upload }).unwrap();
+        reference.set_draw_options(no_terrain_horizon);
         assert_eq!(triangles, settle(&mut reference, camera), "a failed chunk is drawn other than it should be");
         println!(
             "40 panics in {} chunks: reported once each, retried, settled at {triangles} triangles",
