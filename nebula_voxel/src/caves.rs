@@ -184,20 +184,14 @@ impl Network {
         (span - 1.0) / (2.0 * widest) < 1.0 && tallest - 0.5 * (span - 1.0) > 0.0
     }
 
-    /// `w · wide` at its widest (the swell at 1) over a column whose
-    /// region weight is `region`: where the course noise's |n| is this or
-    /// more, no tunnel of this network passes over the column, whatever
-    /// its swell ([`Self::column`]'s `e` is at least 1: each operation
-    /// there rises with the swell, rounding included).
-    fn widest_reach(&self, region: f64) -> f64 {
-        self.width * ((1.0 + self.widen) * region)
-    }
-
     /// Whether a tunnel of this network can pass over a column whose
     /// course noise is `course` and region weight `region`, whatever its
-    /// swell: [`Self::column`] is asked only where one can.
+    /// swell: `|n|` under `w · wide` at its widest (the swell at 1).
+    /// Elsewhere [`Self::column`]'s `e` is at least 1 for any swell (each
+    /// operation there rises with the swell, rounding included), so it is
+    /// asked only where one can.
     fn may_pass(&self, course: f64, region: f64) -> bool {
-        course.abs() < self.widest_reach(region)
+        course.abs() < self.width * ((1.0 + self.widen) * region)
     }
 
     /// This network's air over the column in unit direction `d` whose

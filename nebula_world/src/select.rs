@@ -324,9 +324,12 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // under the sea (drawn opaque over them), the sea; where a leaf's
     // meshes are all held, the lowest point they draw. A leaf still
     // waiting for its meshes is drawn through a stand-in whose surface is
-    // not its own: it hides nothing yet. A held mesh is the same whatever
-    // came before, so a view settles to the same picture and chunks however
-    // it was reached.
+    // not its own: it hides nothing yet. Not yet history-free: a leaf
+    // meshed before the ground in front hid it keeps its mesh and counts,
+    // one never meshed does not, so a view can settle to other coarse
+    // chunks depending on the order meshes came in (what is hidden: the
+    // render tests find the horizon changes no pixel; README, "The
+    // ground's own horizon", what is left).
     let occluders: Vec<(NodeBounds, f64)> = tree
         .visible_leaves_with_bounds()
         .zip(&leaf_slots)
