@@ -81,11 +81,13 @@ fn slope(d: f64, r: f64, angle: f64) -> f64 {
 
 impl TerrainHorizon {
     /// The horizon seen from every eye within `margin` metres of `eye`,
-    /// made of the floors of `occluders` (node bounds with a floor radius
-    /// at or under the node's own lowest surface: the radius under which
-    /// its patch is rock as drawn). Occluders past 90° from the eye add
-    /// nothing.
-    pub fn new(eye: DVec3, margin: f64, occluders: impl IntoIterator<Item = (NodeBounds, f64)>) -> Self {
+    /// made of the floors of `leaves` (node bounds with a floor radius at
+    /// or under the node's own lowest surface: the radius under which its
+    /// patch is rock as drawn; `None` where none is known yet). Every leaf
+    /// sizes the bearing bins, so that a view's bins do not depend on
+    /// which of its leaves have floors yet. Leaves past 90° from the eye
+    /// add nothing.
+    pub fn new(eye: DVec3, margin: f64, leaves: impl IntoIterator<Item = (NodeBounds, Option<f64>)>) -> Self {
         let distance = eye.length();
         let up = eye.normalize_or_zero();
         let east = up.any_orthonormal_vector();
@@ -95,29 +97,43 @@ impl TerrainHorizon {
             return horizon;
         }
         let margin = margin.max(0.0);
-        let mut rises: Vec<(f64, f64, f64, f64)> = Vec::new();
-        for (bounds, floor) in occluders {
-            let floor = floor - margin;
+        // The bearings over which the disc inscribed in `bounds`' patch,
+        // shrunk by the margin at `radius`, runs at its centre's angle
+        // from the eye, as (that angle, the centre's bearing, half the
+        // arc); `None` where it adds nothing.
+        let arc = |bounds: &NodeBounds, radius: f64| {
             // A point of the segment moves by the margin at most; the
             // deepest such point is at 0.7 of the floor (within 90°).
-            let inner = bounds.inner_angular_radius - 2.0 * margin / floor;
+            let inner = bounds.inner_angular_radius - 2.0 * margin / radius;
             let angle = horizon.angle_to(bounds.center_direction);
-            if !(floor > 0.0 && inner > 0.0 && angle > inner && angle < FRAC_PI_2) {
-                continue;
+            if !(radius > 0.0 && inner > 0.0 && angle > inner && angle < FRAC_PI_2) {
+                return None;
             }
-            // The bearings over which the disc's arc at `angle` runs.
             let (sin, cos) = angle.sin_cos();
             let cos_half = (inner.cos() - cos * cos) / (sin * sin);
-            let half = cos_half.clamp(-1.0, 1.0).acos();
-            rises.push((angle, slope(distance, floor, angle), horizon.bearing(bounds.center_direction), half));
+            Some((angle, horizon.bearing(bounds.center_direction), cos_half.clamp(-1.0, 1.0).acos()))
+        };
+        // The arcs of every leaf (for the bins' size, from its lowest
+        // surface, whether or not it has a floor yet), and the floors'
+        // rises as (angle, slope, bearing, half the arc).
+        let mut halves = Vec::new();
+        let mut rises: Vec<(f64, f64, f64, f64)> = Vec::new();
+        for (bounds, floor) in leaves {
+            if let Some((_, _, half)) = arc(&bounds, bounds.min_radius - margin) {
+                halves.push(half);
+            }
+            let Some(floor) = floor.map(|floor| floor - margin) else { continue };
+            if let Some((angle, bearing, half)) = arc(&bounds, floor) {
+                rises.push((angle, slope(distance, floor, angle), bearing, half));
+            }
         }
         // Bins about a third of the median arc: an arc then covers two or
         // more whole bins (it counts only for bins it covers wholly), and a
         // far leaf spans a handful, not hundreds (a test visits each).
-        if !rises.is_empty() {
-            let middle = rises.len() / 2;
-            let (_, median, _) = rises.select_nth_unstable_by(middle, |a, b| a.3.total_cmp(&b.3));
-            let wanted = TAU / (2.0 * median.3 / 3.0);
+        if !halves.is_empty() {
+            let middle = halves.len() / 2;
+            let (_, median, _) = halves.select_nth_unstable_by(middle, f64::total_cmp);
+            let wanted = TAU / (2.0 * *median / 3.0);
             let bins = if wanted.is_finite() { (wanted as usize).next_power_of_two() } else { MAX_BEARING_BINS };
             horizon.bins = vec![Vec::new(); bins.clamp(MIN_BEARING_BINS, MAX_BEARING_BINS)];
         }

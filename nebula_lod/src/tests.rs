@@ -810,7 +810,7 @@ fn the_ground_in_front_hides_only_what_rock_hides() {
         tree.cull(&camera).unwrap();
         let leaves: Vec<(ChunkColumn, NodeBounds)> = tree.visible_leaves_with_bounds().map(|(c, b)| (c, *b)).collect();
         let horizon =
-            |lift: f64| TerrainHorizon::new(eye, margin, leaves.iter().map(|(_, b)| (*b, b.min_radius + lift)));
+            |lift: f64| TerrainHorizon::new(eye, margin, leaves.iter().map(|(_, b)| (*b, Some(b.min_radius + lift))));
         // As a streamer judges: the bounds, then the tight top where the
         // floor alone would be hidden.
         let hidden = |terrain: &TerrainHorizon| -> Vec<(ChunkColumn, NodeBounds)> {
@@ -901,8 +901,8 @@ proptest! {
             })
             .collect();
         let eye = eye * (1.0 + height);
-        let horizon = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, b.min_radius)));
-        let raised = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, b.min_radius + lift)));
+        let horizon = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, Some(b.min_radius))));
+        let raised = TerrainHorizon::new(eye, margin, bounds.iter().map(|b| (*b, Some(b.min_radius + lift))));
         for b in &bounds {
             if horizon.hides(b) {
                 let lower = NodeBounds { max_radius: b.min_radius.max(b.max_radius - lift), ..*b };

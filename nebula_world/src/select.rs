@@ -11,7 +11,7 @@
 //! are above it), and the walls that look away from the eye are told by
 //! the frame thread, for the eye that came.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::time::Instant;
 
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
@@ -122,7 +122,8 @@ pub(crate) struct SelectSettings {
     /// Whether far columns' tops may be sampled
     /// ([`VoxelSource::surface_top_radius`], tens of microseconds each, up
     /// to [`NEW_TOPS_PER_PLAN`]): on the LOD thread, not on the frame
-    /// thread (whose plan also starts without the thread's memo of them).
+    /// thread (whose plan also starts without the thread's memo of them),
+    /// unless there is no LOD thread.
     pub(crate) sample_tops: bool,
 }
 
@@ -320,27 +321,25 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // Leaves behind the ground in front are hidden too: its horizon,
     // bearing by bearing ([`TerrainHorizon`]), is made of the leaves of the
     // planned view (no line of sight in it crosses another's patch), over
-    // what is drawn for them:
-    // under the sea (drawn opaque over them), the sea; where a leaf's
-    // meshes are all held, the lowest point they draw. A leaf still
-    // waiting for its meshes is drawn through a stand-in whose surface is
-    // not its own: it hides nothing yet. Not yet history-free: a leaf
-    // meshed before the ground in front hid it keeps its mesh and counts,
-    // one never meshed does not, so a view can settle to other coarse
-    // chunks depending on the order meshes came in (what is hidden: the
-    // render tests find the horizon changes no pixel; README, "The
-    // ground's own horizon", what is left).
-    let occluders: Vec<(NodeBounds, f64)> = tree
+    // what is drawn for them: under the opaque sea, the sea (drawn over
+    // them whatever is meshed); where a leaf's meshes are all held, the
+    // lowest point they draw. A leaf still waiting for its meshes is drawn
+    // through a stand-in whose surface is not its own: it hides nothing
+    // yet. One meshed before the ground in front hid it (not drawn now)
+    // adds nothing either: its floor is under its top, which that ground
+    // rises over. So a settled view (every leaf seen meshed, every top
+    // sampled: [`DrawList::tops_awaited`]) hides the same whatever came
+    // before; every leaf sizes the horizon's bearing bins for that too.
+    let occluders: Vec<(NodeBounds, Option<f64>)> = tree
         .visible_leaves_with_bounds()
         .zip(&leaf_slots)
         .filter(|&((_, b), &(_, planned))| options.terrain_occlusion && planned && !sphere_hides(b))
-        .filter_map(|((leaf, b), &(slot, _))| {
-            // Wholly under the sea, first (no lookup for the rest).
-            if let Some(sea) = sea.filter(|sea| b.max_radius <= sea.radius && sea_hides(leaf, false)) {
-                return Some((*b, sea.radius));
+        .map(|((leaf, b), &(slot, _))| {
+            if let Some(sea) = sea.filter(|sea| b.min_radius <= sea.radius && sea_hides(leaf, false)) {
+                return (*b, Some(sea.radius));
             }
-            let cached = columns.in_slot(slot?, leaf).filter(|c| c.ready(leaf, stale))?;
-            Some((*b, cached.drawn_floor()?))
+            let cached = slot.and_then(|slot| columns.in_slot(slot, leaf)).filter(|c| c.ready(leaf, stale));
+            (*b, cached.and_then(CachedColumn::drawn_floor))
         })
         .collect();
     let terrain = TerrainHorizon::new(eye, eye_margin, occluders);
@@ -352,7 +351,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     }
     // A few hundred new ones a plan at most (each samples 81 heights): the
     // rest wait for the next, drawn in detail meanwhile.
-    let (tops, new_tops) = (RefCell::new(tops), std::cell::Cell::new(0));
+    let (tops, new_tops, tops_awaited) = (RefCell::new(tops), Cell::new(0), Cell::new(0));
     let bounds_behind = |column: ChunkColumn, bounds: &NodeBounds| {
         if sphere_hides(bounds) {
             return true;
@@ -370,7 +369,10 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 tops.insert(column, top);
                 top
             }
-            None => return false,
+            None => {
+                tops_awaited.set(tops_awaited.get() + 1);
+                return false;
+            }
         };
         clearance.hides(top)
     };
@@ -494,6 +496,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             holes += 1;
         }
     }
+    // Tops awaited for the view (prefetching asks for more below).
+    let tops_awaited = tops_awaited.get();
     // Out of view: every leaf the tree holds (as it would be drawn) and its
     // stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's work
     // and kept, so a turn of the camera finds them meshed.
@@ -581,6 +585,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     drawn.dedup_by_key(|&mut (c, _)| c);
     let mut draw = DrawList {
         behind_horizon,
+        tops_awaited,
         under_sea: under_the_sea,
         occluder_radius: occluder.unwrap_or(f64::NAN),
         holes,

@@ -865,6 +865,11 @@ pub struct DrawList {
     /// Leaves in the frustum behind that horizon, drawn as their coarsest
     /// hidden ancestor instead of being meshed.
     pub behind_horizon: usize,
+    /// Columns whose tight tops the ground's horizon waits for
+    /// ([`VoxelSource::surface_top_radius`], a few hundred sampled a
+    /// plan): drawn in detail meanwhile, so the view is not final until
+    /// none is.
+    pub tops_awaited: usize,
     /// Leaves in the frustum under the opaque sea ([`OpaqueSea`]), drawn
     /// as their coarsest ancestor under it too.
     pub under_sea: usize,
@@ -1494,7 +1499,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// Plans this frame's selection on the frame thread (no plan made
     /// ahead could serve).
     fn plan_here(&mut self) -> Plan<H> {
-        let settings = self.select_settings(self.frame, self.eye, 0.0, false);
+        // Far tops are sampled on the LOD thread, off the frame's time;
+        // without one, here (the view would never settle on them).
+        let settings = self.select_settings(self.frame, self.eye, 0.0, self.lod_thread.is_none());
         let mut selection = self.selection.take().unwrap_or_else(|| Box::new(Selection::new()));
         let input = SelectInput {
             voxels: &*self.voxels,
@@ -1871,6 +1878,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             && self.draw.holes == 0
             && self.meshing.view_pending() == 0
             && self.cache.stale.is_empty()
+            && self.draw.tops_awaited == 0
     }
 
     /// Whether prefetching out of view ([`MeshCache::prefetch`]) has
