@@ -1,13 +1,15 @@
 //! Meshing speed and output size against block-mesh alone, in one run.
 //!
-//! For the same padded chunks (a surface chunk of the Earth-sized planet at
-//! LOD 0 and at LOD 5, and a worst case of random 50 % voxels):
+//! For the same padded chunks (surface chunks of the Earth-sized planet at
+//! LOD 0 and at LOD 5, under the mountain flight at LOD 0 and 4, and a
+//! worst case of random 50 % voxels):
 //! - `greedy_quads`: block-mesh's greedy meshing alone (the baseline);
 //! - `binary_greedy_quads`: block-mesh-bgm's bitmask greedy meshing alone,
 //!   the same faces as block-mesh (what `surface` runs on);
 //! - `bgm_fast_mesh`: the binary-greedy-meshing crate's `fast_mesh` alone,
 //!   with its opacity masks built outside the timing (it expects a game to
-//!   keep them up to date);
+//!   keep them up to date), and `bgm_mask_and_fast_mesh`: with its voxels
+//!   and masks made from our padded chunk each time;
 //! - `surface`: greedy quads → T-junction-free triangles on the sphere,
 //!   sky light included (`sky_floors`: its fixed part);
 //! - `copy_and_plug_dark_air` against `copy`: what plugging a chunk's dark
@@ -65,24 +67,37 @@ impl VoxelSource for Prepared<'_> {
     }
 }
 
+/// The LOD-`lod` column with the most faces in its surface chunks of the
+/// 8 × 8 around the start of the 1 km/s mountain flight
+/// (`docs/flight-1kms-mountains.json`, 300 m over a range on Earth seed
+/// 1): the range's steepest ground there.
+fn mountain_column(planet: &ProceduralPlanet, lod: u8) -> ChunkColumn {
+    let eye = nebula_math::DVec3::new(-2_852_441.14, 5_696_193.33, -144_566.46);
+    let at = planet.layout().voxel_at(eye).expect("the eye is over the planet");
+    let cells = 32 << lod;
+    let (x, y) = (at.i / cells, at.j / cells);
+    let columns = (0..64).map(|n| ChunkColumn { face: at.face, lod, x: x + n % 8 - 4, y: y + n / 8 - 4 });
+    columns.max_by_key(|&column| faces(&surface_chunk(planet, column))).expect("64 columns")
+}
+
+/// Solid voxels' faces open to air in `voxels`.
+fn faces(voxels: &ChunkVoxels) -> usize {
+    let mut quads = UnitQuadBuffer::new();
+    let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
+    visible_block_faces(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut quads);
+    quads.num_quads()
+}
+
 /// The surface chunk of a column with the most solid voxels' faces.
 fn surface_chunk(planet: &ProceduralPlanet, column: ChunkColumn) -> ChunkVoxels {
     let mut best = ChunkVoxels::new(column.chunk(0));
     let mut best_faces = 0;
-    let mut quads = UnitQuadBuffer::new();
     for layer in planet.surface_chunk_layers(column).expect("on the planet") {
         let mut voxels = ChunkVoxels::new(column.chunk(layer));
         planet.fill_chunk(column.chunk(layer), &mut voxels).expect("valid key");
-        visible_block_faces(
-            voxels.as_slice(),
-            &PaddedChunkShape {},
-            [0; 3],
-            [33; 3],
-            &RIGHT_HANDED_Y_UP_CONFIG.faces,
-            &mut quads,
-        );
-        if quads.num_quads() > best_faces {
-            best_faces = quads.num_quads();
+        let faces = faces(&voxels);
+        if faces > best_faces {
+            best_faces = faces;
             best = voxels;
         }
     }
@@ -90,22 +105,26 @@ fn surface_chunk(planet: &ProceduralPlanet, column: ChunkColumn) -> ChunkVoxels 
 }
 
 /// The chunk in binary-greedy-meshing's layout (34³, z fastest, then x,
-/// then y) and its opacity mask (one u64 per (y, x) column, bit z).
-fn bgm_input(voxels: &ChunkVoxels) -> (Vec<u16>, Vec<u64>) {
+/// then y) and its opacity mask (one u64 per (y, x) column, bit z), made
+/// from our padded voxels (x fastest, then y, then z) in one pass over
+/// them: what a game keeping its voxels as we do pays to mesh with it.
+fn bgm_input_into(voxels: &ChunkVoxels, out: &mut [u16], opaque: &mut [u64]) {
     const P: usize = 34;
-    let mut out = vec![0u16; P * P * P];
-    let mut opaque = vec![0u64; P * P];
-    for y in 0..P {
-        for x in 0..P {
-            for z in 0..P {
-                let voxel = voxels.get([x as u32, y as u32, z as u32]).unwrap_or(Voxel::AIR);
+    opaque.fill(0);
+    for (z, slab) in voxels.as_slice().chunks_exact(P * P).enumerate() {
+        for (y, row) in slab.chunks_exact(P).enumerate() {
+            for (x, voxel) in row.iter().enumerate() {
                 out[z + x * P + y * P * P] = u16::from(voxel.material());
-                if voxel.is_solid() {
-                    opaque[x + y * P] |= 1 << z;
-                }
+                opaque[x + y * P] |= u64::from(voxel.is_solid()) << z;
             }
         }
     }
+}
+
+/// [`bgm_input_into`] into new buffers.
+fn bgm_input(voxels: &ChunkVoxels) -> (Vec<u16>, Vec<u64>) {
+    let (mut out, mut opaque) = (vec![0u16; PADDED_CHUNK_VOLUME], vec![0u64; 34 * 34]);
+    bgm_input_into(voxels, &mut out, &mut opaque);
     (out, opaque)
 }
 
@@ -122,6 +141,8 @@ fn meshing(c: &mut Criterion) {
     let cases = [
         ("terrain_lod0", surface_chunk(&planet, ChunkColumn { face: CubeFace::PosZ, lod: 0, x: 100_000, y: 70_001 })),
         ("terrain_lod5", surface_chunk(&planet, ChunkColumn { face: CubeFace::NegY, lod: 5, x: 3_000, y: 4_100 })),
+        ("mountains_lod0", surface_chunk(&planet, mountain_column(&planet, 0))),
+        ("mountains_lod4", surface_chunk(&planet, mountain_column(&planet, 4))),
         ("noise50", noisy_chunk(ChunkKey { face: CubeFace::PosX, lod: 0, x: 9, y: 9, layer: 0 })),
     ];
     let source = Prepared { planet: &planet, chunks: cases.iter().map(|(_, v)| (v.key(), v.clone())).collect() };
@@ -172,6 +193,19 @@ fn meshing(c: &mut Criterion) {
                 bgm.fast_mesh(&bgm_voxels, &bgm_opaque, &bgm_transparent);
             });
         });
+        // The same with its input made from our voxels each time (the
+        // baseline issue 25 names: "its opaque mask and fast_mesh").
+        let (mut bgm_scratch, mut bgm_masks) = (bgm_voxels.clone(), bgm_opaque.clone());
+        group.bench_function(
+            BenchmarkId::new(format!("{name}/bgm_mask_and_fast_mesh"), format!("quads={bgm_quads}")),
+            |b| {
+                b.iter(|| {
+                    bgm_input_into(voxels, &mut bgm_scratch, &mut bgm_masks);
+                    bgm.clear();
+                    bgm.fast_mesh(&bgm_scratch, &bgm_masks, &bgm_transparent);
+                });
+            },
+        );
         group.bench_function(BenchmarkId::new(format!("{name}/surface"), format!("tris={surface_tris}")), |b| {
             b.iter(|| mesher.mesh(voxels, planet.layout()).expect("valid chunk"));
         });

@@ -356,7 +356,9 @@ impl ChunkMesher {
             });
             let is_covered = |index: usize| covered[index] == stamp;
             axes.push_boundary_strips(voxels.as_slice(), &is_covered, boundary_layers, group);
-            split_by_sky(&axes, group, voxels, &self.sky_floors, &|padded| self.is_plug(padded));
+            let is_plug = |padded| self.is_plug(padded);
+            let plugs = self.plugs_for.is_some().then_some(&is_plug as &dyn Fn([u32; 3]) -> bool);
+            split_by_sky(&axes, group, voxels, &self.sky_floors, plugs);
         }
         self.push_mirror_faces(voxels, &mut groups);
         for (group, face) in groups.iter().zip(faces) {
@@ -731,8 +733,39 @@ impl ChunkMesher {
         // `local[axis]` (padded `+ 1`) in front of a face looking up the
         // axis, the one before it otherwise; the layer behind it next to it.
         let front = if side.is_positive() { local[axis] + 1 } else { local[axis] };
-        let back = if side.is_positive() { front - 1 } else { front + 1 };
+        // The four cells in front, by padded index (a lattice point's
+        // cells lie in the padded chunk: coordinates 0..=33), and the
+        // step to the one behind each.
+        let stride =
+            |axis: usize| [1, PADDED_CHUNK_SIZE as usize, (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE) as usize][axis];
+        let mut corner = [0i32; 3];
+        corner[axis] = front;
+        corner[u] = local[u];
+        corner[v] = local[v];
+        let corner = corner.map(|c| c as u32);
+        let first = PaddedChunkShape::linearize(corner) as usize;
+        let (slice, plugs) = (voxels.as_slice(), self.plugs_for.is_some());
         let lit = [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
+            let index = first + du * stride(u) + dv * stride(v);
+            let mut at = corner.map(|c| c as usize);
+            at[u] += du;
+            at[v] += dv;
+            let floor = usize::from(self.sky_floors[at[0] + PADDED_CHUNK_SIZE as usize * at[2]]);
+            let back = if side.is_positive() { index - stride(axis) } else { index + stride(axis) };
+            !slice[index].is_solid() && at[1] >= floor && !(plugs && self.plugs[back / 64] & (1 << (back % 64)) != 0)
+        });
+        debug_assert_eq!(lit, self.sky_light_as_read(voxels, local, side));
+        if lit { 255 } else { 0 }
+    }
+
+    /// [`Self::sky_light`]'s test read voxel by voxel (what it was): its
+    /// debug twin.
+    fn sky_light_as_read(&self, voxels: &ChunkVoxels, local: [i32; 3], side: FaceDirection) -> bool {
+        let axis = side.axis();
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let front = if side.is_positive() { local[axis] + 1 } else { local[axis] };
+        let back = if side.is_positive() { front - 1 } else { front + 1 };
+        [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
             let at = |layer: i32| {
                 let mut padded = [0i32; 3];
                 padded[axis] = layer;
@@ -741,8 +774,7 @@ impl ChunkMesher {
                 padded.map(|c| c as u32)
             };
             open_to_sky(voxels, &self.sky_floors, at(front)) && !self.is_plug(at(back))
-        });
-        if lit { 255 } else { 0 }
+        })
     }
 
     /// The canonical world position of local lattice point `local`: the
@@ -836,17 +868,29 @@ fn open_to_sky(voxels: &ChunkVoxels, sky_floors: &[u8; PADDED_COLUMNS], padded: 
 /// boundary plane stay as they are (their vertices there must be the
 /// canonical set, which knows nothing of light). Open ground and caves
 /// away from their mouths are one kind throughout and not split.
+/// `is_plug` is `None` where the chunk has no plugs.
 fn split_by_sky(
     axes: &FaceAxes,
     group: &mut Vec<UnorientedQuad>,
     voxels: &ChunkVoxels,
     floors: &[u8; PADDED_COLUMNS],
-    is_plug: &dyn Fn([u32; 3]) -> bool,
+    is_plug: Option<&dyn Fn([u32; 3]) -> bool>,
 ) {
     let front = |padded: [u32; 3]| {
         let mut front = padded;
         front[axes.n] = if axes.positive { front[axes.n] + 1 } else { front[axes.n] - 1 };
-        open_to_sky(voxels, floors, front) && !is_plug(padded)
+        match is_plug {
+            Some(is_plug) => open_to_sky(voxels, floors, front) && !is_plug(padded),
+            // A greedy quad's faces have air in front (solid is opaque,
+            // the rest empty), so open to the sky is over the floor, and
+            // without plugs that is all: a read of the floors alone (the
+            // voxel read and the call were most of meshing's per-face
+            // work).
+            None => {
+                debug_assert!(voxels.get(front).is_some_and(|voxel| !voxel.is_solid()));
+                front[1] >= u32::from(floors[(front[0] + PADDED_CHUNK_SIZE * front[2]) as usize])
+            }
+        }
     };
     let mut runs = Vec::new();
     group.retain(|quad| {
