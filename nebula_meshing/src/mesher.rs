@@ -897,9 +897,37 @@ fn split_by_sky(
         if axes.touches_boundary(quad) {
             return true;
         }
-        let first = front(quad.minimum);
-        let mut uniform = true;
-        axes.for_each_face(quad, |padded| uniform &= front(padded) == first);
+        let uniform = if is_plug.is_some() {
+            let first = front(quad.minimum);
+            let mut uniform = true;
+            axes.for_each_face(quad, |padded| uniform &= front(padded) == first);
+            uniform
+        } else {
+            // The cells in front of the faces are a box: every face is
+            // open where its height is over every floor of the box's
+            // columns, and none where under every one.
+            let mut low = quad.minimum;
+            low[axes.n] = if axes.positive { low[axes.n] + 1 } else { low[axes.n] - 1 };
+            let mut high = low;
+            high[axes.u] += quad.width - 1;
+            high[axes.v] += quad.height - 1;
+            let (mut least, mut most) = (u8::MAX, u8::MIN);
+            for z in low[2]..=high[2] {
+                let row = (PADDED_CHUNK_SIZE * z) as usize;
+                for &floor in &floors[row + low[0] as usize..=row + high[0] as usize] {
+                    least = least.min(floor);
+                    most = most.max(floor);
+                }
+            }
+            let uniform = u32::from(most) <= low[1] || u32::from(least) > high[1];
+            debug_assert_eq!(uniform, {
+                let first = front(quad.minimum);
+                let mut all = true;
+                axes.for_each_face(quad, |padded| all &= front(padded) == first);
+                all
+            });
+            uniform
+        };
         if uniform {
             return true;
         }
