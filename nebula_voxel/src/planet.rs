@@ -790,8 +790,9 @@ impl ProceduralPlanet {
     /// neighbouring columns in one noise cell paying its corner hashes once
     /// and two neighbours in one cell blended at once in SIMD lanes
     /// ([`Fractal::step`]). A column depends on H only through comparisons
-    /// with thresholds (`undecided`): voxel centres every `span` layers,
-    /// the depths where dirt and stone begin, and the material heights.
+    /// with thresholds (`undecided_apart_from_edges`, `meets_edges`):
+    /// voxel centres every `span` layers, the depths where dirt and stone
+    /// begin, and the material heights.
     /// The three sums go coarse octaves first, and a column leaves once the
     /// bounds of its height ([`Fractal::bounds`] through `combine`, which
     /// rises with each sum) hold no threshold; its height is then the
@@ -900,15 +901,21 @@ impl ProceduralPlanet {
                 // The climate's ranges, as H's (`mountains` rises with both sums).
                 let climates = [(c_low, self.mountains(c_low, r_low)), (c_high, self.mountains(c_high, r_high))]
                     .map(|(continents, mountains)| Climate { sin_latitude: directions[k].z, continents, mountains });
-                if !last && self.undecided(low, high, climates, &thresholds[k], span) {
+                if !last && self.undecided_apart_from_edges(low, high, climates, &thresholds[k], span) {
+                    return true;
+                }
+                if !last && meets_edges(climates, &thresholds[k]) {
                     // The chunk's shared climate ranges hold the column's
-                    // own edges: where they leave it open, its own may not
-                    // (over a coarse chunk they span degrees).
+                    // own edges: where they alone leave it open, its own
+                    // may not (over a coarse chunk they span degrees).
+                    // Looked up only then: a column open for its height
+                    // stays open whatever its edges (three `exp`s a look
+                    // were 7 % of a LOD-5 chunk).
                     if thresholds[k].exact() {
                         return true;
                     }
                     thresholds[k] = self.surface_thresholds(directions[k].z);
-                    if self.undecided(low, high, climates, &thresholds[k], span) {
+                    if meets_edges(climates, &thresholds[k]) {
                         return true;
                     }
                 }
@@ -938,12 +945,10 @@ impl ProceduralPlanet {
         columns
     }
 
-    /// Whether some threshold a column of `span`-layer voxels is compared
-    /// against lies between heights `low` and `high` (metres) or between
-    /// the two `climates`, give or take rounding: a material threshold
-    /// ([`Self::surface_thresholds`]), or in layers a voxel centre
-    /// (`(h + 1)·span − 1/2`) or the depth below one where dirt gives way
-    /// to stone (3 layers more, `classify_depth`).
+    /// Whether any threshold a column is compared against lies between
+    /// heights `low` and `high` or between the two `climates`: its edges
+    /// ([`meets_edges`]) or the rest ([`Self::undecided_apart_from_edges`]).
+    #[cfg(test)]
     fn undecided(
         &self,
         low: f64,
@@ -952,22 +957,33 @@ impl ProceduralPlanet {
         thresholds: &SurfaceThresholds,
         span: f64,
     ) -> bool {
-        const ROUNDING: f64 = 1e-6;
-        let between = |t: f64, low: f64, high: f64| low - ROUNDING <= t && t <= high + ROUNDING;
-        let [least, most] = climates;
-        if thresholds.heights.iter().any(|&t| between(t, low, high))
-            || thresholds
-                .continents
-                .iter()
-                .any(|&(t_low, t_high)| t_low - ROUNDING <= most.continents && least.continents <= t_high + ROUNDING)
-            || between(thresholds.mountains, least.mountains, most.mountains)
-        {
-            return true;
-        }
-        self.undecided_voxels((low - ROUNDING) / self.layer_height, (high + ROUNDING) / self.layer_height, span)
+        meets_edges(climates, thresholds) || self.undecided_apart_from_edges(low, high, climates, thresholds, span)
     }
 
-    /// The voxel thresholds of [`Self::undecided`], heights in layers.
+    /// Whether some threshold a column of `span`-layer voxels is compared
+    /// against lies between heights `low` and `high` (metres) or between
+    /// the mountains terms of the two `climates`, give or take rounding: a
+    /// height or mountains threshold ([`Self::surface_thresholds`]), or in
+    /// layers a voxel centre (`(h + 1)·span − 1/2`) or the depth below one
+    /// where dirt gives way to stone (3 layers more, `classify_depth`).
+    /// The climate's edges are the rest a column waits on
+    /// ([`meets_edges`]).
+    #[inline(never)]
+    fn undecided_apart_from_edges(
+        &self,
+        low: f64,
+        high: f64,
+        [least, most]: [Climate; 2],
+        thresholds: &SurfaceThresholds,
+        span: f64,
+    ) -> bool {
+        let between = |t: f64, low: f64, high: f64| low - ROUNDING <= t && t <= high + ROUNDING;
+        thresholds.heights.iter().any(|&t| between(t, low, high))
+            || between(thresholds.mountains, least.mountains, most.mountains)
+            || self.undecided_voxels((low - ROUNDING) / self.layer_height, (high + ROUNDING) / self.layer_height, span)
+    }
+
+    /// The voxel thresholds of [`Self::undecided_apart_from_edges`], heights in layers.
     fn undecided_voxels(&self, low: f64, high: f64, span: f64) -> bool {
         [-0.5, 2.5].iter().any(|&offset| offset + span * ceil((low - offset) / span) <= high)
     }
@@ -1409,6 +1425,21 @@ const FOREST_INLAND: f64 = 0.5;
 /// Degrees of latitude at `sin_latitude` (either hemisphere alike).
 fn latitude_degrees(sin_latitude: f64) -> f64 {
     sin_latitude.abs().min(1.0).asin().to_degrees()
+}
+
+/// Slack for rounding in the comparisons that tell whether a column is
+/// decided (`ProceduralPlanet::undecided_apart_from_edges`, [`meets_edges`]).
+const ROUNDING: f64 = 1e-6;
+
+/// Whether the continents sums between `climates` meet one of the
+/// climate's edges (or their ranges) in `thresholds`, give or take
+/// rounding: what, with `ProceduralPlanet::undecided_apart_from_edges`,
+/// keeps a column open.
+fn meets_edges([least, most]: [Climate; 2], thresholds: &SurfaceThresholds) -> bool {
+    thresholds
+        .continents
+        .iter()
+        .any(|&(t_low, t_high)| t_low - ROUNDING <= most.continents && least.continents <= t_high + ROUNDING)
 }
 
 /// A climate belt's bell at `latitude` degrees: 1 at `centre`, falling
