@@ -383,13 +383,16 @@ pub fn write_png(path: &Path, rgba: &[u8], size: (u32, u32)) -> anyhow::Result<(
 #[must_use]
 pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
     let f = &figures.frame;
-    let histogram: serde_json::Map<String, serde_json::Value> = f
-        .lod_histogram
-        .iter()
-        .enumerate()
-        .filter(|(_, n)| **n > 0)
-        .map(|(lod, n)| (lod.to_string(), serde_json::json!(n)))
-        .collect();
+    // Per LOD, as {"lod": count} for the LODs with any.
+    let by_lod = |counts: &[usize]| -> serde_json::Map<String, serde_json::Value> {
+        counts
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| **n > 0)
+            .map(|(lod, n)| (lod.to_string(), serde_json::json!(n)))
+            .collect()
+    };
+    let (histogram, lod_triangles) = (by_lod(&f.lod_histogram), by_lod(&f.lod_triangles));
     serde_json::json!({
         "adapter": adapter,
         "frames": figures.frames,
@@ -414,6 +417,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "behind_horizon": f.behind_horizon,
         "under_sea": f.under_sea,
         "lod_histogram": histogram,
+        "lod_triangles": lod_triangles,
         "max_neighbor_lod_diff": f.max_neighbor_lod_diff,
         "max_drawn_lod_diff": f.max_drawn_lod_diff,
         "unsettled": f.unsettled,

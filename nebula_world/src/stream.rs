@@ -935,6 +935,9 @@ pub struct StreamFigures {
     pub skirt_triangles_held: usize,
     /// Chunks drawn per LOD.
     pub lod_histogram: Vec<usize>,
+    /// Triangles drawn per LOD (skirts included): where a view's triangles
+    /// per pixel come from.
+    pub lod_triangles: Vec<usize>,
     /// Visible leaves drawn through an ancestor or their children.
     pub stand_ins: usize,
     /// Visible leaves with nothing drawn for them.
@@ -1960,8 +1963,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn figures(&self) -> StreamFigures {
         let max_lod = self.tree.max_lod();
+        let lods = usize::from(max_lod) + 1;
         let mut figures =
-            StreamFigures { lod_histogram: vec![0; usize::from(max_lod) + 1], ..StreamFigures::default() };
+            StreamFigures { lod_histogram: vec![0; lods], lod_triangles: vec![0; lods], ..StreamFigures::default() };
         for (key, chunk, draw) in self.drawn() {
             figures.chunks += 1;
             let skirts: usize = chunk
@@ -1972,7 +1976,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 .map(|(&n, _)| n as usize)
                 .sum();
             let shown = |(side, &n): (usize, &u32)| if draw.hidden_sides & (1 << side) == 0 { n as usize } else { 0 };
-            figures.triangles += chunk.surface_triangles.iter().enumerate().map(shown).sum::<usize>() + skirts;
+            let triangles = chunk.surface_triangles.iter().enumerate().map(shown).sum::<usize>() + skirts;
+            figures.triangles += triangles;
+            figures.lod_triangles[usize::from(key.lod)] += triangles;
             figures.skirt_triangles += skirts;
             figures.skirt_triangles_held += chunk.skirt_triangles.iter().map(|&n| n as usize).sum::<usize>();
             figures.lod_histogram[usize::from(key.lod)] += 1;

@@ -1135,6 +1135,12 @@ mod streaming {
         let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
         let (mut streamer, camera, _) = settled_over_the_ground(&world, 0.0, 20);
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        // Its figures by LOD add up, and name the LODs drawn.
+        let figures = streamer.figures();
+        assert_eq!(figures.lod_triangles.iter().sum::<usize>(), figures.triangles);
+        assert_eq!(figures.lod_histogram.iter().sum::<usize>(), figures.chunks);
+        assert!(figures.lod_triangles.iter().zip(&figures.lod_histogram).all(|(&t, &n)| t == 0 || n > 0));
+        assert!(figures.lod_histogram.iter().filter(|&&n| n > 0).count() > 1, "one LOD drawn: {figures:?}");
         let (copies, (taken, _)) = (streamer.lod_tree_copies(), streamer.lod_thread_frames());
         assert!(copies >= 1, "no tree came from the LOD thread");
         for _ in 0..50 {
