@@ -991,6 +991,21 @@ mod streaming {
         }
     }
 
+    /// Updates `streamer` for the still `camera` (2 ms between frames)
+    /// until its view is settled with every seam meshed for the LODs drawn
+    /// around it; panics past `max_frames`.
+    fn settle_seams<S: VoxelSource + 'static>(streamer: &mut Streamer<S, Sized>, camera: Camera, max_frames: u32) {
+        let mut upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        for frames in 0.. {
+            streamer.update(camera, &mut upload);
+            if streamer.settled() && streamer.figures().unsettled == 0 {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(frames < max_frames, "did not settle");
+        }
+    }
+
     #[test]
     fn a_paused_streamer_starts_no_job_and_settles_once_resumed() {
         // Paused from its first frame, a small planet's view stays drawn
@@ -1244,16 +1259,7 @@ mod streaming {
         let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
         streamer.keep_cpu_meshes(true);
         streamer.set_seam_strategy(crate::seams::SeamStrategy::Stitched);
-        let settle = |streamer: &mut Streamer<_, Sized>| {
-            for frames in 0.. {
-                streamer.update(camera, &mut { upload });
-                if streamer.settled() && streamer.figures().unsettled == 0 {
-                    break;
-                }
-                std::thread::sleep(std::time::Duration::from_millis(2));
-                assert!(frames < 20_000, "did not settle");
-            }
-        };
+        let settle = |streamer: &mut Streamer<_, Sized>| settle_seams(streamer, camera, 20_000);
         settle(&mut streamer);
         assert_eq!(stale_meshes(&streamer, &*world.voxels()), 0, "settled before any edit");
         // The drawn chunk nearest the eye stitched on its +X or +Z side to a
@@ -1400,14 +1406,7 @@ mod streaming {
             streamer.drawn().map(|(key, chunk, _)| (key, chunk.made_for)).collect::<Drawn>()
         };
         let settle = |streamer: &mut Streamer<Flaky, Sized>, camera: Camera| {
-            for frames in 0.. {
-                streamer.update(camera, &mut { upload });
-                if streamer.settled() && streamer.figures().unsettled == 0 {
-                    break;
-                }
-                std::thread::sleep(std::time::Duration::from_millis(2));
-                assert!(frames < 60_000, "did not settle");
-            }
+            settle_seams(streamer, camera, 60_000);
             drawn(streamer)
         };
         let differ = |a: &Drawn, b: &Drawn| {
