@@ -967,7 +967,8 @@ impl ProceduralPlanet {
     /// layers a voxel centre (`(h + 1)·span − 1/2`) or the depth below one
     /// where dirt gives way to stone (3 layers more, `classify_depth`).
     /// The climate's edges are the rest a column waits on
-    /// ([`meets_edges`]).
+    /// ([`meets_edges`]). Not inlined: inlined into `columns_at`'s
+    /// look, the fill's code around it got slower (a LOD-0 chunk 4 %).
     #[inline(never)]
     fn undecided_apart_from_edges(
         &self,
