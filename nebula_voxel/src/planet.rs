@@ -407,6 +407,11 @@ impl HeightCache {
         self.entries.lock().ok()?.0.get(&column).cloned()
     }
 
+    /// H in layers at lattice point `(i, j)` of `face` if the memo has it.
+    fn known(&self, face: CubeFace, i: i64, j: i64) -> Option<f64> {
+        self.points.lock().ok()?.get(&(face, i, j)).copied()
+    }
+
     /// H in layers at lattice point `(i, j)` of `face`, from the memo or
     /// from `compute`.
     fn point(&self, face: CubeFace, i: i64, j: i64, compute: impl FnOnce() -> f64) -> f64 {
@@ -1014,6 +1019,68 @@ impl ProceduralPlanet {
     fn corner_height(&self, face: CubeFace, i: i64, j: i64, remember: bool) -> f64 {
         let height = || self.column_height_layers(face, i - 1, j - 1);
         if remember { self.heights.point(face, i, j, height) } else { height() }
+    }
+
+    /// The highest H in layers at lattice points `corners` (`(i, j,
+    /// shared)`, as [`Self::corner_height`] takes them, nodes of every
+    /// grid), bit for bit the highest `corner_height`: the three sums go
+    /// octave by octave over the corners still open, and a corner whose H
+    /// can no longer reach the highest lower bound of another's leaves
+    /// (its H is at most that other's). The memo's heights are used where
+    /// it has them; a tight top samples 81 corners, and summing every
+    /// octave of each was most of the LOD thread's noise.
+    fn highest_height(&self, face: CubeFace, corners: impl Iterator<Item = (i64, i64, bool)>) -> f64 {
+        let sphere = self.layout.sphere();
+        let mut highest_known = f64::NEG_INFINITY;
+        let (mut directions, mut summed) = (Vec::new(), Vec::new());
+        for (i, j, shared) in corners {
+            match shared.then(|| self.heights.known(face, i, j)).flatten() {
+                Some(height) => highest_known = highest_known.max(height),
+                None => {
+                    directions.push(sphere.direction(face, (i - 1) as f64 + 0.5, (j - 1) as f64 + 0.5));
+                    summed.push((i, j));
+                }
+            }
+        }
+        let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
+        let fractals = [&self.continents, &self.ridges, &self.hills];
+        let mut batches = [
+            self.continents.begin(&points(self.noise_scale)),
+            self.ridges.begin(&points(self.ridge_scale)),
+            self.hills.begin(&points(self.detail_scale)),
+        ];
+        // In metres: the highest lower bound so far.
+        let mut floor = highest_known * self.layer_height;
+        let mut open: Vec<usize> = (0..directions.len()).collect();
+        let mut highs = vec![f64::NEG_INFINITY; directions.len()];
+        while !open.is_empty() {
+            for (fractal, batch) in fractals.iter().zip(&mut batches) {
+                fractal.step(batch, &open);
+            }
+            let last = fractals.iter().zip(&batches).all(|(fractal, batch)| batch.done(fractal));
+            for &k in &open {
+                let [c, r, h] = [0, 1, 2].map(|n| fractals[n].bounds(&batches[n], k));
+                floor = floor.max(self.combine(c.0, r.0, h.0));
+                highs[k] = self.combine(c.1, r.1, h.1);
+            }
+            if last {
+                break;
+            }
+            // `combine` rises with each sum: a corner whose bound is under
+            // another's lower bound is lower than it (a micrometre spare
+            // for the sums' rounding).
+            open.retain(|&k| highs[k] >= floor - ROUNDING);
+        }
+        let highest = open.iter().map(|&k| highs[k] / self.layer_height).fold(highest_known, f64::max);
+        debug_assert_eq!(
+            highest.to_bits(),
+            summed
+                .iter()
+                .map(|&(i, j)| self.column_height_layers(face, i - 1, j - 1))
+                .fold(highest_known, f64::max)
+                .to_bits()
+        );
+        highest
     }
 
     /// Height in layers of LOD-0 column `(i, j)` of `face` (which may lie
@@ -1679,18 +1746,24 @@ impl VoxelSource for ProceduralPlanet {
         // |Δi| + |Δj|) of one, so S·spacing covers what lies between.
         let cells = i64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod);
         let spacing = cells / TOP_GRID;
-        let mut sampled = f64::NEG_INFINITY;
-        for a in 0..=TOP_GRID {
-            for b in 0..=TOP_GRID {
-                let i = i64::from(column.x) * cells + a * spacing;
-                let j = i64::from(column.y) * cells + b * spacing;
-                // The memo holds the tree's samples (its nodes' corners
-                // and centres, here and at the children): not the rest,
-                // which would crowd them out.
-                let shared = a % (TOP_GRID / 2) == 0 && b % (TOP_GRID / 2) == 0;
-                sampled = sampled.max(self.corner_height(column.face, i, j, shared));
-            }
-        }
+        let corners = (0..=TOP_GRID).flat_map(|a| (0..=TOP_GRID).map(move |b| (a, b))).map(|(a, b)| {
+            // The memo holds the tree's samples (its nodes' corners and
+            // centres, here and at the children): not the rest, which
+            // would crowd them out.
+            let shared = a % (TOP_GRID / 2) == 0 && b % (TOP_GRID / 2) == 0;
+            (i64::from(column.x) * cells + a * spacing, i64::from(column.y) * cells + b * spacing, shared)
+        });
+        // Where every octave is read at these corners (no grid coarser
+        // than their spacing: far, coarse columns, where the tops are
+        // asked for), only their highest H is needed: found without
+        // summing every octave at every corner (`highest_height`).
+        let sampled = if self.levels.iter().all(|levels| levels.exact_at(spacing)) {
+            self.highest_height(column.face, corners)
+        } else {
+            corners.fold(f64::NEG_INFINITY, |highest, (i, j, shared)| {
+                highest.max(self.corner_height(column.face, i, j, shared))
+            })
+        };
         let high = relief.high.min(sampled + relief.slope * spacing as f64);
         // A voxel's top is within half a layer over its column's H (as in
         // `bounds_reaching`).
