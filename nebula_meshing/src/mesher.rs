@@ -252,7 +252,11 @@ impl ChunkMesher {
 
     /// Whether padded voxel `padded` is a plug of the chunk being meshed.
     fn is_plug(&self, padded: [u32; 3]) -> bool {
-        let index = PaddedChunkShape::linearize(padded) as usize;
+        self.is_plug_at(PaddedChunkShape::linearize(padded) as usize)
+    }
+
+    /// [`Self::is_plug`] by padded index.
+    fn is_plug_at(&self, index: usize) -> bool {
         self.plugs_for.is_some() && self.plugs[index / 64] & (1 << (index % 64)) != 0
     }
 
@@ -744,7 +748,7 @@ impl ChunkMesher {
         corner[v] = local[v];
         let corner = corner.map(|c| c as u32);
         let first = PaddedChunkShape::linearize(corner) as usize;
-        let (slice, plugs) = (voxels.as_slice(), self.plugs_for.is_some());
+        let slice = voxels.as_slice();
         let lit = [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().any(|(du, dv)| {
             let index = first + du * stride(u) + dv * stride(v);
             let mut at = corner.map(|c| c as usize);
@@ -752,7 +756,7 @@ impl ChunkMesher {
             at[v] += dv;
             let floor = usize::from(self.sky_floors[at[0] + PADDED_CHUNK_SIZE as usize * at[2]]);
             let back = if side.is_positive() { index - stride(axis) } else { index + stride(axis) };
-            !slice[index].is_solid() && at[1] >= floor && !(plugs && self.plugs[back / 64] & (1 << (back % 64)) != 0)
+            !slice[index].is_solid() && at[1] >= floor && !self.is_plug_at(back)
         });
         debug_assert_eq!(lit, self.sky_light_as_read(voxels, local, side));
         if lit { 255 } else { 0 }
@@ -892,16 +896,20 @@ fn split_by_sky(
             }
         }
     };
+    // Whether every face of `quad` is lit alike, face by face.
+    let uniform_by_faces = |quad: &UnorientedQuad| {
+        let first = front(quad.minimum);
+        let mut uniform = true;
+        axes.for_each_face(quad, |padded| uniform &= front(padded) == first);
+        uniform
+    };
     let mut runs = Vec::new();
     group.retain(|quad| {
         if axes.touches_boundary(quad) {
             return true;
         }
         let uniform = if is_plug.is_some() {
-            let first = front(quad.minimum);
-            let mut uniform = true;
-            axes.for_each_face(quad, |padded| uniform &= front(padded) == first);
-            uniform
+            uniform_by_faces(quad)
         } else {
             // The cells in front of the faces are a box: every face is
             // open where its height is over every floor of the box's
@@ -920,12 +928,7 @@ fn split_by_sky(
                 }
             }
             let uniform = u32::from(most) <= low[1] || u32::from(least) > high[1];
-            debug_assert_eq!(uniform, {
-                let first = front(quad.minimum);
-                let mut all = true;
-                axes.for_each_face(quad, |padded| all &= front(padded) == first);
-                all
-            });
+            debug_assert_eq!(uniform, uniform_by_faces(quad));
             uniform
         };
         if uniform {

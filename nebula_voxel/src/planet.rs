@@ -1031,17 +1031,17 @@ impl ProceduralPlanet {
     /// octave of each was most of the LOD thread's noise.
     fn highest_height(&self, face: CubeFace, corners: impl Iterator<Item = (i64, i64, bool)>) -> f64 {
         let sphere = self.layout.sphere();
+        // The corners to sum: those the memo does not have.
         let mut highest_known = f64::NEG_INFINITY;
-        let (mut directions, mut summed) = (Vec::new(), Vec::new());
+        let mut summed = Vec::new();
         for (i, j, shared) in corners {
             match shared.then(|| self.heights.known(face, i, j)).flatten() {
                 Some(height) => highest_known = highest_known.max(height),
-                None => {
-                    directions.push(sphere.direction(face, (i - 1) as f64 + 0.5, (j - 1) as f64 + 0.5));
-                    summed.push((i, j));
-                }
+                None => summed.push((i, j)),
             }
         }
+        let directions: Vec<nebula_math::DVec3> =
+            summed.iter().map(|&(i, j)| sphere.direction(face, (i - 1) as f64 + 0.5, (j - 1) as f64 + 0.5)).collect();
         let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
         let fractals = [&self.continents, &self.ridges, &self.hills];
         let mut batches = [
