@@ -328,8 +328,10 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // yet. One meshed before the ground in front hid it (not drawn now)
     // adds nothing either: its floor is under its top, which that ground
     // rises over. So a settled view (every leaf seen meshed, every top
-    // sampled: [`DrawList::tops_awaited`]) hides the same whatever came
-    // before; every leaf sizes the horizon's bearing bins for that too.
+    // sampled: [`DrawList::tops_awaited`]) is meant to hide the same
+    // whatever came before; every leaf sizes the horizon's bearing bins
+    // for that too. (One case still differs now and then: README, "The
+    // ground's own horizon".)
     let occluders: Vec<(NodeBounds, Option<f64>)> = tree
         .visible_leaves_with_bounds()
         .zip(&leaf_slots)
