@@ -118,6 +118,9 @@ pub struct Figures {
     pub gpu_buffer_bytes: u64,
     /// Pixels in the picture (for triangles per pixel).
     pub pixels: u64,
+    /// What occlusion culling let through to the rasteriser, when the
+    /// frame was culled.
+    pub culling: Option<nebula_render::CullFigures>,
 }
 
 /// The process's peak resident memory so far (Linux `VmHWM`), bytes;
@@ -298,6 +301,12 @@ pub fn settle_and_draw(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow:
 /// Read-back failures.
 pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Result<Picture> {
     let target = Offscreen::new(app.gpu(), shot.size)?;
+    if app.renderer().occlusion_culling() {
+        // Occlusion culling draws first what was visible the frame before;
+        // a game draws every frame, a settled shot only this one: draw it
+        // once unread, as the frame before.
+        app.draw(&target.view, shot.size, shot.background, shot.view);
+    }
     draw_into(app, shot, view, &target, true)
 }
 
@@ -328,6 +337,7 @@ pub fn draw_into(
     };
     // The read-back or the wait waited for the frame: its GPU time is in.
     let render = app.renderer_mut().stats();
+    let culling = app.renderer().read_culling_figures().context("reading occlusion culling's counts back")?;
     let draw_ms = started.elapsed().as_secs_f64() * 1e3;
     let started = Instant::now();
     let cracks = match shot.background.filter(|_| read_back) {
@@ -353,6 +363,7 @@ pub fn draw_into(
             check_ms: started.elapsed().as_secs_f64() * 1e3,
             gpu_buffer_bytes: app.renderer().mesh_buffer_bytes(),
             pixels: u64::from(shot.size.0) * u64::from(shot.size.1),
+            culling,
             ..Figures::default()
         },
         rgba,
@@ -408,6 +419,17 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "mesh_bytes_held": f.held_bytes,
         "triangles": f.triangles,
         "triangles_per_pixel": f.triangles as f64 / figures.pixels.max(1) as f64,
+        // What reached the rasteriser after occlusion culling (surfaces
+        // and skirts; `triangles` counts the list's surfaces).
+        "occlusion_culling": figures.culling.map(|c| serde_json::json!({
+            "rasterised_triangles": c.triangles(),
+            "rasterised_triangles_per_pixel": c.triangles() as f64 / figures.pixels.max(1) as f64,
+            "listed_triangles": c.listed_triangles,
+            "first_phase_triangles": c.first_phase_triangles,
+            "second_phase_triangles": c.second_phase_triangles,
+            "draws": c.draws,
+            "listed_draws": c.listed_draws,
+        })),
         "peak_rss_bytes": peak_rss_bytes(),
         "skirt_triangles": f.skirt_triangles,
         "skirt_triangles_held": f.skirt_triangles_held,

@@ -143,6 +143,11 @@ struct Args {
     /// picture is the same, from more triangles).
     #[arg(long)]
     no_terrain_occlusion: bool,
+    /// Draw every chunk of the list instead of culling those the depth of
+    /// nearer chunks hides on the GPU (for comparing: the picture is the
+    /// same, from more triangles rasterised).
+    #[arg(long)]
+    no_occlusion_culling: bool,
     /// How seams between LODs are closed: skirts, constrained or stitched
     /// (`nebula_world::seams`).
     #[arg(long, value_name = "STRATEGY", default_value = "skirts")]
@@ -481,6 +486,7 @@ fn draw_options(args: &Args) -> DrawOptions {
 fn configure(app: &mut PlanetApp, args: &Args) {
     app.set_draw_options(draw_options(args));
     set_multisampling(app, args.msaa);
+    app.renderer_mut().set_occlusion_culling(!args.no_occlusion_culling);
     let uploader = args.mesh_thread_uploads.then(|| app.mesh_uploader());
     let mut stream = app.streamer_mut();
     stream.0.set_uploader(uploader);

@@ -201,6 +201,13 @@ impl RenderVertex {
         rel
     }
 
+    /// The morph target's world position as the GPU reads it (its f32 and
+    /// f16 parts, summed in f64).
+    #[must_use]
+    pub fn target_position(&self) -> DVec3 {
+        Vec3::from_array(self.position_high).as_dvec3() + Vec3::from_array(self.target_low.map(f16::to_f32)).as_dvec3()
+    }
+
     /// World position − morph target, metres, as the GPU reads it: the f16
     /// offset times 2^LOD (exact in f32).
     #[must_use]

@@ -18,6 +18,13 @@
 //!   error; the skirt shader builds each skirt quad from an outline edge of
 //!   the surface, lowered as deep as the frame needs. The fragment shader
 //!   lights materials, or shows a [`DebugView`].
+//! - [`PlanetRenderer::render`] culls on the GPU what nearer chunks hide
+//!   (two-phase occlusion culling against a depth pyramid, `cull`): the
+//!   chunks visible the frame before are drawn, their depth reduced, and
+//!   the rest drawn where their boxes may show. The same picture from
+//!   fewer triangles ([`PlanetRenderer::read_culling_figures`] says how
+//!   many); [`PlanetRenderer::terrain_pass`] with
+//!   [`PlanetRenderer::draw_terrain`] draws the whole list in one pass.
 //! - [`PlanetRenderer::draw_atmosphere`] draws sky, sea and haze over the
 //!   terrain from its depth and sea mask; a game with its own sky skips it.
 //! - Depth is reversed-Z with an infinite far plane ([`DEPTH_FORMAT`],
@@ -66,11 +73,13 @@
 pub mod arena;
 pub mod context;
 pub mod crack;
+mod cull;
 pub mod picture_error;
 pub mod readback;
 mod renderer;
 pub mod sun;
 
+pub use cull::CullFigures;
 pub use renderer::{
     COLOR_FORMAT, DEPTH_FORMAT, DebugView, FrameParams, FrameStats, GpuMesh, MeshUploader, NEAR_PLANE, PlanetRenderer,
     RenderError, RendererOptions, SEA_MASK_FORMAT, SMOOTH_SAMPLES, SPACE, WANTED_FEATURES, eye_in_sea, overlay_pass,

@@ -82,17 +82,7 @@ pub(crate) fn read_texture(
         wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
     );
     queue.submit([encoder.finish()]);
-    let (sender, receiver) = std::sync::mpsc::channel();
-    buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-        let _ = sender.send(result);
-    });
-    device
-        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
-    receiver
-        .recv()
-        .map_err(|e| RenderError::Readback(e.to_string()))?
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    map_and_wait(device, &buffer)?;
     let mut pixels = Vec::with_capacity((unpadded * height) as usize);
     {
         let mapped = buffer.get_mapped_range(..).map_err(|e| RenderError::Readback(e.to_string()))?;
@@ -102,4 +92,40 @@ pub(crate) fn read_texture(
     }
     buffer.unmap();
     Ok(pixels)
+}
+
+/// Copies the first `bytes` of `source` (a `COPY_SRC` buffer) back to the
+/// CPU and waits for it.
+pub(crate) fn read_buffer(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    source: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<u8>, RenderError> {
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("read-back"),
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+    encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, bytes);
+    queue.submit([encoder.finish()]);
+    map_and_wait(device, &buffer)?;
+    let copy = buffer.get_mapped_range(..).map_err(|e| RenderError::Readback(e.to_string()))?.to_vec();
+    buffer.unmap();
+    Ok(copy)
+}
+
+/// Maps `buffer` for reading once the work submitted so far is done, and
+/// waits for it.
+fn map_and_wait(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<(), RenderError> {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+        let _ = sender.send(result);
+    });
+    device
+        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    receiver.recv().map_err(|e| RenderError::Readback(e.to_string()))?.map_err(|e| RenderError::Readback(e.to_string()))
 }

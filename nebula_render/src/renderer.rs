@@ -14,6 +14,7 @@ use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
 use wgpu::util::{DrawIndexedIndirectArgs, DrawIndirectArgs};
 
 use crate::arena::{MeshArena, Slot};
+use crate::cull::{ChunkBox, CullFigures, Culling, MeshBox, mesh_key};
 
 /// The colour format of offscreen targets: plain UNORM, so the clear
 /// colour is stored exactly (the shader encodes sRGB itself).
@@ -192,6 +193,8 @@ pub struct GpuMesh {
     surface_side_ranges: [[u32; 2]; 6],
     /// Each side's range of skirt edges, `[start, end)`.
     skirt_ranges: [[u32; 2]; 4],
+    /// The box of its surface, occlusion culling's test.
+    bounds: MeshBox,
     /// The chunk's LOD.
     pub lod: u8,
     /// A small number from the chunk key, for the chunk-colour view.
@@ -424,6 +427,18 @@ pub struct PlanetRenderer {
     /// Whether draws go through the indirect buffer (the device can start
     /// an indirect draw at an instance).
     indirect_draws: bool,
+    /// Two-phase occlusion culling of the indirect draws (`crate::cull`),
+    /// made where the device draws indirectly.
+    culling: Option<Culling>,
+    /// Whether [`Self::render`] culls ([`Self::set_occlusion_culling`]).
+    occlusion_culling: bool,
+    /// The frame's chunk boxes by instance, as they are made.
+    chunk_boxes: Vec<ChunkBox>,
+    /// Whether the last frame rendered was culled.
+    culled: bool,
+    /// The chunk boxes' half axes are scaled by this (1; tests shrink
+    /// them to show that their checks catch a wrong cull).
+    cull_box_scale: f32,
     /// The depth target and sea mask, and the sky pass's bind group that
     /// reads them.
     depth: Option<DepthTarget>,
@@ -499,6 +514,7 @@ impl MeshUploader {
         GpuMesh {
             bytes: slot.as_ref().map_or(0, Slot::bytes),
             slot,
+            bounds: MeshBox::of(mesh),
             surface_side_ranges: mesh.surface_side_ranges.clone().map(narrow_range),
             skirt_ranges: mesh.skirt_ranges.clone().map(narrow_range),
             lod: key.lod,
@@ -802,6 +818,7 @@ impl PlanetRenderer {
         let (chunk_buffer, chunk_group) = chunk_ring(device, &chunk_layout, 256);
         let indirect_draws = device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
         let indirect = indirect_buffer(device, 1024 * DRAW_ARGS_BYTES);
+        let culling = indirect_draws.then(|| Culling::new(device, if smooth.is_some() { SMOOTH_SAMPLES } else { 1 }));
         let timer = device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| GpuTimer::new(device, queue));
         Ok(Self {
             device: device.clone(),
@@ -825,6 +842,11 @@ impl PlanetRenderer {
             chunk_uniforms: Vec::new(),
             by_page: Vec::new(),
             indirect_draws,
+            occlusion_culling: culling.is_some(),
+            culling,
+            chunk_boxes: Vec::new(),
+            culled: false,
+            cull_box_scale: 1.0,
             depth: None,
             sky_pipeline,
             sky_layout,
@@ -883,6 +905,44 @@ impl PlanetRenderer {
     /// draws are possible (for comparing the two; off by default).
     pub fn set_direct_draws(&mut self, direct: bool) {
         self.indirect_draws = !direct && self.device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
+    }
+
+    /// Culls hidden chunks on the GPU in [`Self::render`] (two-phase
+    /// occlusion culling, `crate::cull`: the same picture, fewer triangles
+    /// rasterised), or draws every chunk of the list; returns whether it
+    /// now culls (never where draws are not indirect). On by default where
+    /// it can be.
+    pub fn set_occlusion_culling(&mut self, on: bool) -> bool {
+        self.occlusion_culling = on && self.culling.is_some();
+        self.occlusion_culling
+    }
+
+    /// Whether [`Self::render`] culls hidden chunks.
+    #[must_use]
+    pub fn occlusion_culling(&self) -> bool {
+        self.occlusion_culling && self.indirect_draws
+    }
+
+    /// Scales the boxes occlusion culling tests (1 is right; smaller boxes
+    /// leave out chunks that show). For tests that must show they catch a
+    /// wrong cull.
+    #[doc(hidden)]
+    pub fn scale_cull_boxes_for_tests(&mut self, scale: f32) {
+        self.cull_box_scale = scale;
+    }
+
+    /// What the last frame [`Self::render`] drew through occlusion
+    /// culling: triangles and draws by phase, and what the list held;
+    /// `None` when that frame was not culled. Reads the GPU's counts back
+    /// and waits for it (reports and tests, not every frame).
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`] if the read-back fails.
+    pub fn read_culling_figures(&self) -> Result<Option<CullFigures>, RenderError> {
+        match &self.culling {
+            Some(culling) if self.culled => culling.read_figures(&self.device, &self.queue).map(Some),
+            _ => Ok(None),
+        }
     }
 
     /// Copies a chunk's mesh into the renderer's buffers: the mesh maker
@@ -986,8 +1046,9 @@ impl PlanetRenderer {
         // index; one indirect draw per drawn surface range (the surface
         // but the sides looking away) and one per skirt lowered this frame,
         // grouped by the page holding the mesh and by kind.
-        let (chunk_uniforms, by_page) = (&mut self.chunk_uniforms, &mut self.by_page);
+        let (chunk_uniforms, by_page, boxes) = (&mut self.chunk_uniforms, &mut self.by_page, &mut self.chunk_boxes);
         chunk_uniforms.clear();
+        boxes.clear();
         for batch in by_page.iter_mut() {
             batch.surface.iter_mut().for_each(Vec::clear);
             batch.skirts.clear();
@@ -1007,6 +1068,8 @@ impl PlanetRenderer {
                 skirt_depths: draw.skirt_depths,
                 pulls: [slot.first_vertex(), slot.first_edge_word(), u32::from(wide), 0],
             });
+            let key = mesh_key(slot.page, slot.first_vertex());
+            boxes.push(mesh.bounds.relative(frame.eye, &draw, key).scaled(self.cull_box_scale));
             if by_page.len() <= slot.page {
                 by_page.resize_with(slot.page + 1, Default::default);
             }
@@ -1078,15 +1141,31 @@ impl PlanetRenderer {
         }
         let (surface_bytes, skirt_bytes) =
             (self.draw_args.len() as u64 * DRAW_ARGS_BYTES, self.skirt_args.len() as u64 * SKIRT_ARGS_BYTES);
-        if self.indirect_draws && surface_bytes + skirt_bytes > 0 {
-            if surface_bytes + skirt_bytes > self.indirect_capacity {
-                self.indirect_capacity = (surface_bytes + skirt_bytes).next_power_of_two();
+        let block = surface_bytes + skirt_bytes;
+        if self.indirect_draws && block > 0 {
+            // Twice: the blocks of occlusion culling's two phases (the
+            // first is the whole list where nothing culls).
+            if 2 * block > self.indirect_capacity {
+                self.indirect_capacity = (2 * block).next_power_of_two();
                 self.indirect = indirect_buffer(&self.device, self.indirect_capacity);
             }
-            self.queue.write_buffer(&self.indirect, 0, bytemuck::cast_slice(&self.draw_args));
-            if skirt_bytes > 0 {
-                self.queue.write_buffer(&self.indirect, surface_bytes, bytemuck::cast_slice(&self.skirt_args));
+            for start in [0, block] {
+                self.queue.write_buffer(&self.indirect, start, bytemuck::cast_slice(&self.draw_args));
+                if skirt_bytes > 0 {
+                    self.queue.write_buffer(
+                        &self.indirect,
+                        start + surface_bytes,
+                        bytemuck::cast_slice(&self.skirt_args),
+                    );
+                }
             }
+        }
+        if let Some(culling) = self.culling.as_mut().filter(|_| self.occlusion_culling && self.indirect_draws) {
+            let triangles = self.draw_args.iter().map(|a| u64::from(a.index_count / 3)).sum::<u64>()
+                + self.skirt_args.iter().map(|a| u64::from(a.vertex_count / 3)).sum::<u64>();
+            let pages = self.page_groups.len();
+            let listed = ((self.draw_args.len() + self.skirt_args.len()) as u32, triangles);
+            culling.prepare(&self.device, &self.queue, &self.chunk_boxes, pages, size, listed);
         }
         // The shaded view with its sky is multisampled (resolved into the
         // target and the sea mask); anything else, crack checks and debug
@@ -1118,18 +1197,43 @@ impl PlanetRenderer {
         encoder: &'e mut wgpu::CommandEncoder,
         target: &'e wgpu::TextureView,
     ) -> wgpu::RenderPass<'e> {
+        self.begin_terrain_pass(encoder, target, TerrainPass::Whole)
+    }
+
+    /// [`Self::terrain_pass`], or one of occlusion culling's two: the first
+    /// clears and keeps its samples unresolved, the second loads them and
+    /// resolves.
+    fn begin_terrain_pass<'e>(
+        &'e self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        target: &'e wgpu::TextureView,
+        which: TerrainPass,
+    ) -> wgpu::RenderPass<'e> {
         let prepared = self.prepared.expect("PlanetRenderer::prepare before terrain_pass");
+        let (clear, resolve) = (which != TerrainPass::SecondPhase, which != TerrainPass::FirstPhase);
         let bg = prepared.background.map(|c| f64::from(c) / 255.0);
         let smooth_targets = self.smooth_targets.as_ref().filter(|_| prepared.smooth);
         let resolved_mask = self.depth.as_ref().map(|d| &d.sea_mask);
         let (colour, colour_resolve) = match smooth_targets {
-            Some(t) => (&t.colour_view, Some(target)),
+            Some(t) => (&t.colour_view, Some(target).filter(|_| resolve)),
             None => (target, None),
         };
         let (depth_view, sea_mask, mask_resolve) = match smooth_targets {
-            Some(t) => (Some(&t.depth_view), Some(&t.mask_view), resolved_mask),
+            Some(t) => (Some(&t.depth_view), Some(&t.mask_view), resolved_mask.filter(|_| resolve)),
             None => (self.depth.as_ref().map(|d| &d.view), resolved_mask, None),
         };
+        let colour_load = if clear {
+            wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 })
+        } else {
+            wgpu::LoadOp::Load
+        };
+        let (mask_load, depth_load) = if clear {
+            (wgpu::LoadOp::Clear(wgpu::Color::BLACK), wgpu::LoadOp::Clear(0.0))
+        } else {
+            (wgpu::LoadOp::Load, wgpu::LoadOp::Load)
+        };
+        let timestamps =
+            self.timer.as_ref().and_then(|t| t.writes(if which == TerrainPass::SecondPhase { 1 } else { 0 }));
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("terrain pass"),
             color_attachments: &[
@@ -1137,27 +1241,21 @@ impl PlanetRenderer {
                     view: colour,
                     depth_slice: None,
                     resolve_target: colour_resolve,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
+                    ops: wgpu::Operations { load: colour_load, store: wgpu::StoreOp::Store },
                 }),
                 sea_mask.map(|view| wgpu::RenderPassColorAttachment {
                     view,
                     depth_slice: None,
                     resolve_target: mask_resolve,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
+                    ops: wgpu::Operations { load: mask_load, store: wgpu::StoreOp::Store },
                 }),
             ],
             depth_stencil_attachment: depth_view.map(|view| wgpu::RenderPassDepthStencilAttachment {
                 view,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
+                depth_ops: Some(wgpu::Operations { load: depth_load, store: wgpu::StoreOp::Store }),
                 stencil_ops: None,
             }),
-            timestamp_writes: self.timer.as_ref().and_then(|t| t.writes(0)),
+            timestamp_writes: timestamps,
             occlusion_query_set: None,
             multiview_mask: None,
         })
@@ -1169,6 +1267,12 @@ impl PlanetRenderer {
     /// and one for its skirts, or one draw per chunk range where the device
     /// cannot start an indirect draw at an instance.
     pub fn draw_terrain(&self, pass: &mut wgpu::RenderPass<'_>) -> u32 {
+        self.draw_block(pass, 0)
+    }
+
+    /// [`Self::draw_terrain`] from block `block` of the indirect buffer (0:
+    /// the list, or occlusion culling's first phase; 1: its second).
+    fn draw_block(&self, pass: &mut wgpu::RenderPass<'_>, block: u64) -> u32 {
         let Some(prepared) = self.prepared else { return 0 };
         let pipelines = match (&self.wire_pipeline, prepared.view, &self.smooth) {
             (_, _, Some(smooth)) if prepared.smooth => &smooth.terrain,
@@ -1183,7 +1287,9 @@ impl PlanetRenderer {
         // 8,000 chunks that was never given back.
         pass.set_bind_group(1, &self.chunk_group, &[]);
         let pages = self.uploader.arena.lock();
-        let skirts_from = self.draw_args.len() as u64 * DRAW_ARGS_BYTES;
+        let surface_bytes = self.draw_args.len() as u64 * DRAW_ARGS_BYTES;
+        let block_start = block * (surface_bytes + self.skirt_args.len() as u64 * SKIRT_ARGS_BYTES);
+        let skirts_from = block_start + surface_bytes;
         let mut calls = 0;
         // The surfaces (indexed), then the skirts (one pipeline change).
         let mut drawing_surfaces = None;
@@ -1201,7 +1307,7 @@ impl PlanetRenderer {
                     pass.set_vertex_buffer(0, buffer.slice(..));
                     pass.set_index_buffer(buffer.slice(..), index_format);
                     if self.indirect_draws {
-                        let offset = u64::from(draws.first) * DRAW_ARGS_BYTES;
+                        let offset = block_start + u64::from(draws.first) * DRAW_ARGS_BYTES;
                         pass.multi_draw_indexed_indirect(&self.indirect, offset, draws.count);
                         calls += 1;
                     } else {
@@ -1274,9 +1380,44 @@ impl PlanetRenderer {
         let copies = self.take_uploads();
         self.prepare_draws(frame, size, meshes);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        let mut draw_calls = {
-            let mut pass = self.terrain_pass(&mut encoder, target);
-            self.draw_terrain(&mut pass)
+        let draws = (self.draw_args.len() as u32, self.skirt_args.len() as u32);
+        let view_proj =
+            view_projection(frame.forward, frame.up, frame.fov_y_degrees, size.0 as f32 / size.1.max(1) as f32);
+        let depth = match (self.smooth_targets.as_ref(), self.prepared) {
+            (Some(t), Some(p)) if p.smooth => Some((&t.depth_view, true)),
+            _ => self.depth.as_ref().map(|d| (&d.view, false)),
+        };
+        let culling = self
+            .culling
+            .as_ref()
+            .filter(|_| self.occlusion_culling && self.indirect_draws && draws.0 + draws.1 > 0)
+            .zip(depth);
+        self.culled = culling.is_some();
+        let mut draw_calls = match culling {
+            Some((culling, (depth, multisampled))) => {
+                culling.record_first_phase(&self.device, &self.queue, &mut encoder, &self.indirect, draws, view_proj);
+                let mut calls = {
+                    let mut pass = self.begin_terrain_pass(&mut encoder, target, TerrainPass::FirstPhase);
+                    self.draw_block(&mut pass, 0)
+                };
+                culling.record_second_phase(
+                    &self.device,
+                    &self.queue,
+                    &mut encoder,
+                    depth,
+                    multisampled,
+                    &self.indirect,
+                    draws,
+                    view_proj,
+                );
+                let mut pass = self.begin_terrain_pass(&mut encoder, target, TerrainPass::SecondPhase);
+                calls += self.draw_block(&mut pass, 1);
+                calls
+            }
+            None => {
+                let mut pass = self.terrain_pass(&mut encoder, target);
+                self.draw_terrain(&mut pass)
+            }
         };
         draw_calls += self.draw_atmosphere(&mut encoder, target);
         let timed = self.timer.as_mut().is_some_and(|t| t.resolve(&mut encoder));
@@ -1587,11 +1728,23 @@ fn chunk_ring(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, capacity: u
     (buffer, group)
 }
 
+/// Which terrain pass [`PlanetRenderer::begin_terrain_pass`] begins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TerrainPass {
+    /// The only one: clears, resolves.
+    Whole,
+    /// Occlusion culling's first: clears, keeps the samples.
+    FirstPhase,
+    /// Its second: loads, resolves.
+    SecondPhase,
+}
+
 fn indirect_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("indirect draws"),
         size: bytes,
-        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+        // Storage: occlusion culling sets the instance counts.
+        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     })
 }

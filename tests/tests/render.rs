@@ -916,18 +916,8 @@ fn the_ground_hides_only_what_changes_no_pixel() {
         return;
     }
     let settings = earth();
-    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
-    let mut rng = Rng(0x0cc1_0de5_0f1a_0d00);
     let (mut with, mut without) = (0, 0);
-    for (n, (fov, altitude, pitch)) in
-        [(12.0, (300.0, 800.0), (1.0, 4.0)), (60.0, (30.0, 300.0), (0.0, 10.0)), (12.0, (50.0, 200.0), (0.0, 2.0))]
-            .into_iter()
-            .enumerate()
-    {
-        let dir = place_with_ground(&planet, &mut rng, 5.0..800.0);
-        let heading = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
-        let (eye, look) = pose(&settings, dir, rng.range(altitude.0, altitude.1), heading, rng.range(pitch.0, pitch.1));
-        let view = shot(eye, look, fov);
+    for (n, view) in views_over_land(&settings, 0x0cc1_0de5_0f1a_0d00).into_iter().enumerate() {
         let off = DrawOptions { terrain_occlusion: false, ..DrawOptions::default() };
         let all = settled(&format!("occlusion-off-{n}"), &settings, &view, off);
         let hidden = settled(&format!("occlusion-on-{n}"), &settings, &view, DrawOptions::default());
@@ -938,6 +928,79 @@ fn the_ground_hides_only_what_changes_no_pixel() {
         (with, without) = (with + after, without + before);
     }
     assert!((with as f64) < 0.97 * without as f64, "the hidden ground saved too little to tell: {without} → {with}");
+}
+
+/// Occlusion culling on the GPU (`PlanetRenderer::set_occlusion_culling`,
+/// two phases against a depth pyramid) changes no pixel: random Earth
+/// poses over land (fixed seed), two through a 12° lens a few degrees down
+/// and one at 60°, each settled once and drawn with culling and without,
+/// over the background (every crack shows) and shaded with sky and sea,
+/// one sample per pixel and four; together they rasterise fewer triangles
+/// than their lists hold. The check can fail: boxes shrunk to a quarter of
+/// their size leave out chunks that show.
+#[test]
+fn occlusion_culling_changes_no_pixel() {
+    if !adapter_or_skip("occlusion culling") {
+        return;
+    }
+    let settings = earth();
+    let (mut rasterised, mut listed, mut wrong) = (0, 0, 0);
+    for (n, bare) in views_over_land(&settings, 0xc011_0c0d_e5ee_0001).into_iter().enumerate() {
+        let mut app = app(&settings, &bare, DrawOptions::default());
+        assert!(app.renderer().occlusion_culling(), "culling is on by default where draws are indirect");
+        let view = prepare_shot(&mut app, &bare).expect("a view");
+        let culled = settle_and_draw(&mut app, &bare, &view).expect("drawn");
+        let figures = culled.figures.culling.expect("a culled frame has figures");
+        let shaded = Shot { background: None, ..bare.clone() };
+        let draw = |app: &mut PlanetApp, shot: &Shot, culling: bool, multisampling: bool| {
+            app.renderer_mut().set_occlusion_culling(culling);
+            app.renderer_mut().set_multisampling(multisampling);
+            draw_frame(app, shot, &view).expect("drawn")
+        };
+        let all = draw(&mut app, &bare, false, false);
+        assert!(all.figures.culling.is_none(), "pose {n}: a frame drawn whole has no culling figures");
+        assert_eq!(changed_pixels(&all.rgba, &culled.rgba), 0, "pose {n}: culling changed the picture");
+        assert_eq!(culled.figures.crack_pixels, Some(0), "pose {n}");
+        for multisampling in [false, true] {
+            let (with, without) =
+                (draw(&mut app, &shaded, true, multisampling), draw(&mut app, &shaded, false, multisampling));
+            let changed = changed_pixels(&with.rgba, &without.rgba);
+            assert_eq!(changed, 0, "pose {n}, shaded, multisampling {multisampling}: culling changed the picture");
+        }
+        app.renderer_mut().scale_cull_boxes_for_tests(0.25);
+        wrong += changed_pixels(&all.rgba, &draw(&mut app, &bare, true, false).rgba);
+        println!(
+            "pose {n}: {} of {} triangles rasterised ({} in the first phase), {} draws of {}",
+            figures.triangles(),
+            figures.listed_triangles,
+            figures.first_phase_triangles,
+            figures.draws[0] + figures.draws[1],
+            figures.listed_draws
+        );
+        assert!(figures.triangles() <= figures.listed_triangles, "pose {n}: {figures:?}");
+        (rasterised, listed) = (rasterised + figures.triangles(), listed + figures.listed_triangles);
+    }
+    assert!((rasterised as f64) < 0.9 * listed as f64, "culling saved too little to tell: {listed} → {rasterised}");
+    println!("boxes a quarter of their size change {wrong} pixels");
+    assert!(wrong > 100, "shrunk boxes should leave out chunks that show: {wrong} pixels changed");
+}
+
+/// Random Earth views over land (the generator seeded with `seed`): two
+/// through a 12° lens a few degrees down, 300–800 m and 50–200 m up (where
+/// the far ground sinks behind the near), and one at 60°, 30–300 m up.
+fn views_over_land(settings: &PlanetSettings, seed: u64) -> Vec<Shot> {
+    let planet = ProceduralPlanet::new(settings.clone()).expect("valid planet");
+    let mut rng = Rng(seed);
+    [(12.0, (300.0, 800.0), (1.0, 4.0)), (60.0, (30.0, 300.0), (0.0, 10.0)), (12.0, (50.0, 200.0), (0.0, 2.0))]
+        .into_iter()
+        .map(|(fov, altitude, pitch)| {
+            let dir = place_with_ground(&planet, &mut rng, 5.0..800.0);
+            let heading = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let (eye, look) =
+                pose(settings, dir, rng.range(altitude.0, altitude.1), heading, rng.range(pitch.0, pitch.1));
+            shot(eye, look, fov)
+        })
+        .collect()
 }
 
 /// How many pixels of two same-sized RGBA pictures differ.
