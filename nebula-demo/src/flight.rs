@@ -234,6 +234,7 @@ impl FlightReport {
                     "crack_samples": f.figures.cracks.samples,
                     "chunks": f.figures.frame.chunks,
                     "triangles": f.figures.frame.triangles,
+                    "rasterised_triangles": f.figures.culling.map(|c| c.triangles()),
                     "skirt_triangles": f.figures.frame.skirt_triangles,
                     "unsettled": f.figures.frame.unsettled,
                     "stand_ins": f.figures.frame.stand_ins,
@@ -287,6 +288,8 @@ impl FlightReport {
                 "draw_calls": self.spread(|f| Some(f64::from(f.figures.render.draw_calls))),
                 "chunks": self.spread(|f| Some(f.figures.frame.chunks as f64)),
                 "triangles": self.spread(|f| Some(f.figures.frame.triangles as f64)),
+                // After occlusion culling (surfaces and skirts).
+                "rasterised_triangles": self.spread(|f| f.figures.culling.map(|c| c.triangles() as f64)),
                 "skirt_triangles": self.spread(|f| Some(f.figures.frame.skirt_triangles as f64)),
                 "unsettled": self.spread(|f| Some(f.figures.frame.unsettled as f64)),
                 "upload_bytes": self.spread(|f| Some(f.figures.frame.times.upload_bytes as f64)),

@@ -20,8 +20,8 @@ use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, ca
 use nebula_demo::commands;
 use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
 use nebula_demo::hud::Hud;
-use nebula_render::DebugView;
 use nebula_render::context::GpuContext;
+use nebula_render::{DebugView, PlanetRenderer};
 
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, Voxel, VoxelHit, VoxelSource};
@@ -143,11 +143,6 @@ struct Args {
     /// picture is the same, from more triangles).
     #[arg(long)]
     no_terrain_occlusion: bool,
-    /// Draw every chunk of the list instead of culling those the depth of
-    /// nearer chunks hides on the GPU (for comparing: the picture is the
-    /// same, from more triangles rasterised).
-    #[arg(long)]
-    no_occlusion_culling: bool,
     /// How seams between LODs are closed: skirts, constrained or stitched
     /// (`nebula_world::seams`).
     #[arg(long, value_name = "STRATEGY", default_value = "skirts")]
@@ -155,8 +150,14 @@ struct Args {
     /// Antialiasing of the shaded view (four samples per pixel): `auto` is
     /// on with a GPU and off on a CPU adapter such as lavapipe, where it
     /// makes a frame about three times slower.
-    #[arg(long, value_enum, default_value_t = Multisampling::Auto)]
-    msaa: Multisampling,
+    #[arg(long, value_enum, default_value_t = Switch::Auto)]
+    msaa: Switch,
+    /// Leave out on the GPU the chunks nearer ones hide (the same picture
+    /// from fewer triangles rasterised): `auto` is on with a GPU and off
+    /// on a CPU adapter such as lavapipe, whose memory grows by about
+    /// 1.8 MB a culled frame.
+    #[arg(long, value_enum, default_value_t = Switch::Auto)]
+    occlusion_culling: Switch,
     /// Make the LOD tree's update and cull ahead on a thread of their own
     /// (`false`: on the frame thread, as before; for comparing).
     #[arg(long, value_name = "BOOL", default_value_t = true, action = clap::ArgAction::Set)]
@@ -194,10 +195,10 @@ impl Preset {
     }
 }
 
-/// `--msaa`.
+/// `--msaa` and `--occlusion-culling`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum Multisampling {
-    /// On with a GPU, off on a CPU adapter.
+enum Switch {
+    /// On with a GPU, off on a CPU adapter (the renderer's default).
     Auto,
     /// On wherever the adapter can.
     On,
@@ -205,17 +206,55 @@ enum Multisampling {
     Off,
 }
 
-/// Applies `--msaa` to `app`'s GPU.
-fn set_multisampling(app: &mut PlanetApp, msaa: Multisampling) {
-    match msaa {
-        Multisampling::Auto => {}
-        Multisampling::On => {
-            if !app.renderer_mut().set_multisampling(true) {
-                eprintln!("nebula-demo: this adapter cannot draw 4 samples per pixel in every target; --msaa ignored");
+/// The renderer's switches the command line sets: `--msaa` and
+/// `--occlusion-culling`.
+#[derive(Clone, Copy, Debug)]
+struct RendererSwitches {
+    msaa: Switch,
+    occlusion_culling: Switch,
+}
+
+impl RendererSwitches {
+    fn of(args: &Args) -> Self {
+        Self { msaa: args.msaa, occlusion_culling: args.occlusion_culling }
+    }
+
+    /// Applies them to `app`'s renderer.
+    fn apply(self, app: &mut PlanetApp) {
+        let renderer = app.renderer_mut();
+        let cannot_msaa = "draw 4 samples per pixel in every target";
+        self.msaa.apply(renderer, PlanetRenderer::set_multisampling, "--msaa", cannot_msaa);
+        let cannot_cull = "draw indirectly (occlusion culling needs it)";
+        self.occlusion_culling.apply(
+            renderer,
+            PlanetRenderer::set_occlusion_culling,
+            "--occlusion-culling",
+            cannot_cull,
+        );
+    }
+}
+
+impl Switch {
+    /// Turns a renderer setting on or off with `set` (which answers
+    /// whether it is now on), or leaves its default; says so when the
+    /// adapter `cannot` have it on.
+    fn apply(
+        self,
+        renderer: &mut PlanetRenderer,
+        set: fn(&mut PlanetRenderer, bool) -> bool,
+        flag: &str,
+        cannot: &str,
+    ) {
+        match self {
+            Switch::Auto => {}
+            Switch::On => {
+                if !set(renderer, true) {
+                    eprintln!("nebula-demo: this adapter cannot {cannot}; {flag} ignored");
+                }
             }
-        }
-        Multisampling::Off => {
-            app.renderer_mut().set_multisampling(false);
+            Switch::Off => {
+                set(renderer, false);
+            }
         }
     }
 }
@@ -419,7 +458,8 @@ fn run(args: Args) -> anyhow::Result<()> {
     if !args.headless {
         match EventLoop::new() {
             Ok(event_loop) => {
-                return windowed(event_loop, world, shot, draw_options(&args), args.msaa, args.mesh_budget_mb);
+                let switches = RendererSwitches::of(&args);
+                return windowed(event_loop, world, shot, draw_options(&args), switches, args.mesh_budget_mb);
             }
             Err(error) => eprintln!("nebula-demo: no display ({error}); rendering headless instead"),
         }
@@ -485,8 +525,7 @@ fn draw_options(args: &Args) -> DrawOptions {
 /// The streamer and renderer options the command line sets.
 fn configure(app: &mut PlanetApp, args: &Args) {
     app.set_draw_options(draw_options(args));
-    set_multisampling(app, args.msaa);
-    app.renderer_mut().set_occlusion_culling(!args.no_occlusion_culling);
+    RendererSwitches::of(args).apply(app);
     let uploader = args.mesh_thread_uploads.then(|| app.mesh_uploader());
     let mut stream = app.streamer_mut();
     stream.0.set_uploader(uploader);
@@ -619,7 +658,7 @@ struct Windowed {
     /// Walking instead of flying (G toggles).
     walker: Option<Walker>,
     options: DrawOptions,
-    msaa: Multisampling,
+    switches: RendererSwitches,
     /// `--mesh-budget-mb`.
     mesh_budget_mb: u64,
     shot: Shot,
@@ -649,7 +688,7 @@ fn windowed(
     world: World,
     shot: Shot,
     options: DrawOptions,
-    msaa: Multisampling,
+    switches: RendererSwitches,
     mesh_budget_mb: u64,
 ) -> anyhow::Result<()> {
     let forward = (shot.look_at - shot.position).normalize();
@@ -659,7 +698,7 @@ fn windowed(
         picked: None,
         walker: None,
         options,
-        msaa,
+        switches,
         mesh_budget_mb,
         eye: shot.position,
         // Straight down has no heading: tip it a hair off vertical.
@@ -879,7 +918,7 @@ impl ApplicationHandler for Windowed {
             let mut app = PlanetApp::with_voxels(planet, self.shot.lod_settings(), gpu, shot_view(&self.shot)?)?;
             nebula_demo::headless::place_sun(&mut app, &self.shot)?;
             app.set_draw_options(self.options);
-            set_multisampling(&mut app, self.msaa);
+            self.switches.apply(&mut app);
             app.streamer_mut().0.cache.max_bytes = self.mesh_budget_mb.saturating_mul(1 << 20);
             let hud = Hud::new(app.gpu(), (config.width, config.height), config.format)?;
             Ok(WindowState { window, surface, config, app, hud })

@@ -208,6 +208,28 @@ pub(crate) struct Culling {
     pyramid: Option<Pyramid>,
     /// The last frame's list: draws and triangles, for the figures.
     listed: (u32, u64),
+    /// The bind groups of both cull passes and of the pyramid's first
+    /// level, made again only when what they bind changes, and what they
+    /// were made for: the renderer's indirect buffer and depth targets
+    /// (its counts of how often it made them) and whether the depth is
+    /// multisampled.
+    groups: Option<Groups>,
+}
+
+/// [`Culling`]'s bind groups and what they bind.
+struct Groups {
+    cull: [wgpu::BindGroup; 2],
+    first_level: wgpu::BindGroup,
+    made_for: Bindings,
+}
+
+/// What the renderer binds into [`Culling`]'s groups: its generations of
+/// the indirect buffer and the depth targets, and which depth is read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Bindings {
+    pub indirect: u64,
+    pub targets: u64,
+    pub multisampled: bool,
 }
 
 /// Workgroup size of the cull pass (`cull.wgsl`).
@@ -337,12 +359,16 @@ impl Culling {
             ),
             pyramid: None,
             listed: (0, 0),
+            groups: None,
         }
     }
 
     /// Writes the frame's chunk boxes (by instance, as the chunk table),
     /// sizes the visibility bits for `pages` mesh pages and the pyramid
-    /// for `size`, and remembers the list's size for the figures.
+    /// for `size`, makes the bind groups again if what they bind changed
+    /// (`indirect` and `depth`, as `bindings` says), and remembers the
+    /// list's size for the figures.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -351,10 +377,12 @@ impl Culling {
         pages: usize,
         size: (u32, u32),
         listed: (u32, u64),
+        (indirect, depth, bindings): (&wgpu::Buffer, &wgpu::TextureView, Bindings),
     ) {
         if boxes.len() as u64 > self.box_capacity {
             self.box_capacity = (boxes.len() as u64).next_power_of_two();
             self.boxes = box_buffer(device, self.box_capacity);
+            self.groups = None;
         }
         if !boxes.is_empty() {
             queue.write_buffer(&self.boxes, 0, bytemuck::cast_slice(boxes));
@@ -365,11 +393,54 @@ impl Culling {
             // the first phase, as a frame with no history does.
             self.visible = visible_buffer(device, words);
             self.visible_words = words;
+            self.groups = None;
         }
         if self.pyramid.as_ref().is_none_or(|p| p.size != size) {
             self.pyramid = Some(self.make_pyramid(device, size));
+            self.groups = None;
+        }
+        if self.groups.as_ref().is_none_or(|g| g.made_for != bindings) {
+            self.groups = self.make_groups(device, indirect, depth, bindings);
         }
         self.listed = listed;
+    }
+
+    /// Whether [`Self::prepare`] made everything the passes bind.
+    pub(crate) fn ready(&self) -> bool {
+        self.pyramid.is_some() && self.groups.is_some()
+    }
+
+    fn make_groups(
+        &self,
+        device: &wgpu::Device,
+        indirect: &wgpu::Buffer,
+        depth: &wgpu::TextureView,
+        bindings: Bindings,
+    ) -> Option<Groups> {
+        let pyramid = self.pyramid.as_ref()?;
+        let cull = self.params.each_ref().map(|params| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("occlusion culling"),
+                layout: &self.cull_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: self.boxes.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: indirect.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: self.visible.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: self.counts.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&pyramid.view) },
+                ],
+            })
+        });
+        let first_level = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("depth pyramid, first level"),
+            layout: &self.first[usize::from(bindings.multisampled)].1,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(depth) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&pyramid.first_level) },
+            ],
+        });
+        Some(Groups { cull, first_level, made_for: bindings })
     }
 
     fn make_pyramid(&self, device: &wgpu::Device, size: (u32, u32)) -> Pyramid {
@@ -422,48 +493,34 @@ impl Culling {
     /// emptied), and the counts start again.
     pub(crate) fn record_first_phase(
         &self,
-        device: &wgpu::Device,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
-        indirect: &wgpu::Buffer,
         draws: (u32, u32),
         view_proj: Mat4,
     ) {
         encoder.clear_buffer(&self.counts, 0, None);
-        self.dispatch(device, queue, encoder, indirect, draws, view_proj, 0);
+        self.dispatch(queue, encoder, draws, view_proj, 0);
     }
 
-    /// Records the depth pyramid's reduction of `depth` (what the first
-    /// phase drew; `multisampled` as it is) and the second phase's cull
-    /// pass: block 2 keeps what the pyramid does not hide and the first
-    /// phase did not draw; every chunk's bit is its answer.
-    #[allow(clippy::too_many_arguments)]
+    /// Records the depth pyramid's reduction of the depth (what the first
+    /// phase drew) and the second phase's cull pass: block 2 keeps what
+    /// the pyramid does not hide and the first phase did not draw; every
+    /// chunk's bit is its answer.
     pub(crate) fn record_second_phase(
         &self,
-        device: &wgpu::Device,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
-        depth: &wgpu::TextureView,
-        multisampled: bool,
-        indirect: &wgpu::Buffer,
         draws: (u32, u32),
         view_proj: Mat4,
     ) {
-        let Some(pyramid) = &self.pyramid else { return };
-        let (first, first_layout) = &self.first[usize::from(multisampled)];
-        let first_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("depth pyramid, first level"),
-            layout: first_layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(depth) },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&pyramid.first_level) },
-            ],
-        });
+        let (Some(pyramid), Some(bound)) = (&self.pyramid, &self.groups) else { return };
+        let first = &self.first[usize::from(bound.made_for.multisampled)].0;
+        let first_group = &bound.first_level;
         let groups = |mip: u32| {
             let (w, h) = ((pyramid.size.0 >> mip).max(1), (pyramid.size.1 >> mip).max(1));
             (w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP))
         };
-        let levels = std::iter::once((first, &first_group)).chain(pyramid.down_groups.iter().map(|g| (&self.down, g)));
+        let levels = std::iter::once((first, first_group)).chain(pyramid.down_groups.iter().map(|g| (&self.down, g)));
         for (mip, (pipeline, group)) in (0..).zip(levels) {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("depth pyramid"),
@@ -474,21 +531,18 @@ impl Culling {
             let (x, y) = groups(mip);
             pass.dispatch_workgroups(x, y, 1);
         }
-        self.dispatch(device, queue, encoder, indirect, draws, view_proj, 1);
+        self.dispatch(queue, encoder, draws, view_proj, 1);
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn dispatch(
         &self,
-        device: &wgpu::Device,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
-        indirect: &wgpu::Buffer,
         (surface_draws, skirt_draws): (u32, u32),
         view_proj: Mat4,
         phase: u32,
     ) {
-        let Some(pyramid) = &self.pyramid else { return };
+        let (Some(pyramid), Some(bound)) = (&self.pyramid, &self.groups) else { return };
         let params = CullParams {
             view_proj: view_proj.to_cols_array_2d(),
             screen: [pyramid.size.0 as f32, pyramid.size.1 as f32],
@@ -499,26 +553,14 @@ impl Culling {
             phase,
             pad: 0,
         };
-        let params_buffer = &self.params[phase as usize];
-        queue.write_buffer(params_buffer, 0, bytemuck::bytes_of(&params));
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("occlusion culling"),
-            layout: &self.cull_layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: params_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: self.boxes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: indirect.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: self.visible.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: self.counts.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&pyramid.view) },
-            ],
-        });
+        queue.write_buffer(&self.params[phase as usize], 0, bytemuck::bytes_of(&params));
+        let group = &bound.cull[phase as usize];
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(if phase == 0 { "cull, first phase" } else { "cull, second phase" }),
             timestamp_writes: None,
         });
         pass.set_pipeline(&self.cull);
-        pass.set_bind_group(0, &group, &[]);
+        pass.set_bind_group(0, group, &[]);
         pass.dispatch_workgroups((surface_draws + skirt_draws).div_ceil(CULL_GROUP), 1, 1);
     }
 
