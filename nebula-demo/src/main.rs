@@ -153,9 +153,9 @@ struct Args {
     #[arg(long, value_enum, default_value_t = Switch::Auto)]
     msaa: Switch,
     /// Leave out on the GPU the chunks nearer ones hide (the same picture
-    /// from fewer triangles rasterised): `auto` is on with a GPU and off
-    /// on a CPU adapter such as lavapipe, whose memory grows by about
-    /// 1.8 MB a culled frame.
+    /// from fewer triangles rasterised): `auto` and `on` are on wherever
+    /// the device draws indirectly; `off` draws the whole list (for
+    /// comparing).
     #[arg(long, value_enum, default_value_t = Switch::Auto)]
     occlusion_culling: Switch,
     /// Make the LOD tree's update and cull ahead on a thread of their own
@@ -198,7 +198,7 @@ impl Preset {
 /// `--msaa` and `--occlusion-culling`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum Switch {
-    /// On with a GPU, off on a CPU adapter (the renderer's default).
+    /// The renderer's default (see each flag).
     Auto,
     /// On wherever the adapter can.
     On,

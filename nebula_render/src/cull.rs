@@ -21,8 +21,13 @@
 //! bits only choose which phase draws a chunk. Nothing is read back:
 //! [`Culling::read_figures`] reads the frame's counts when asked (reports,
 //! tests), waiting for the GPU.
-
-use std::num::NonZeroU64;
+//!
+//! Two things lavapipe (Mesa 22.3) made us do: the cull pass reads its
+//! parameters from a storage buffer, not a uniform one (a compute pass
+//! binding a uniform buffer kept about 0.9 MB of the process's memory a
+//! pass, inside the driver: 1.8 MB a frame); and the shader computes the
+//! pyramid's level sizes (`textureDimensions` with a level that varies by
+//! invocation gave level 0's size there).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
@@ -139,9 +144,11 @@ struct CullParams {
     mips: u32,
     surface_draws: u32,
     skirt_draws: u32,
-    phase: u32,
-    pad: u32,
+    pad: [u32; 2],
 }
+
+/// Bytes of the parameters ahead of the boxes in the boxes buffer.
+const PARAMS_BYTES: u64 = size_of::<CullParams>() as u64;
 
 /// The key of a mesh's visibility bit: its page and first vertex (unique
 /// among the meshes held; a freed slot's bit passes to the next mesh
@@ -197,8 +204,7 @@ pub(crate) struct Culling {
     first: [(wgpu::ComputePipeline, wgpu::BindGroupLayout); 2],
     down: wgpu::ComputePipeline,
     down_layout: wgpu::BindGroupLayout,
-    /// Each phase's parameters.
-    params: [wgpu::Buffer; 2],
+    /// The frame's parameters, then its chunk boxes by instance.
     boxes: wgpu::Buffer,
     box_capacity: u64,
     /// A bit per mesh key: visible when last tested (1 when never).
@@ -206,6 +212,8 @@ pub(crate) struct Culling {
     visible_words: u64,
     counts: wgpu::Buffer,
     pyramid: Option<Pyramid>,
+    /// The frame's surface and skirt draws.
+    draws: (u32, u32),
     /// The last frame's list: draws and triangles, for the figures.
     listed: (u32, u64),
     /// The bind groups of both cull passes and of the pyramid's first
@@ -218,7 +226,7 @@ pub(crate) struct Culling {
 
 /// [`Culling`]'s bind groups and what they bind.
 struct Groups {
-    cull: [wgpu::BindGroup; 2],
+    cull: wgpu::BindGroup,
     first_level: wgpu::BindGroup,
     made_for: Bindings,
 }
@@ -268,16 +276,6 @@ impl Culling {
         let cull_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("occlusion culling layout"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: NonZeroU64::new(size_of::<CullParams>() as u64),
-                    },
-                    count: None,
-                },
                 storage(1, true),
                 storage(2, false),
                 storage(3, false),
@@ -335,11 +333,6 @@ impl Culling {
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
         };
-        let uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
-        let params = [
-            buffer("culling, first phase", size_of::<CullParams>() as u64, uniform),
-            buffer("culling, second phase", size_of::<CullParams>() as u64, uniform),
-        ];
         let box_capacity = 256;
         Self {
             cull,
@@ -347,7 +340,6 @@ impl Culling {
             first,
             down,
             down_layout,
-            params,
             boxes: box_buffer(device, box_capacity),
             box_capacity,
             visible: visible_buffer(device, 1),
@@ -358,12 +350,14 @@ impl Culling {
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ),
             pyramid: None,
+            draws: (0, 0),
             listed: (0, 0),
             groups: None,
         }
     }
 
-    /// Writes the frame's chunk boxes (by instance, as the chunk table),
+    /// Writes the frame's parameters (`view_proj`, `draws`: its surface
+    /// and skirt draws) and chunk boxes (by instance, as the chunk table),
     /// sizes the visibility bits for `pages` mesh pages and the pyramid
     /// for `size`, makes the bind groups again if what they bind changed
     /// (`indirect` and `depth`, as `bindings` says), and remembers the
@@ -373,7 +367,7 @@ impl Culling {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        boxes: &[ChunkBox],
+        (view_proj, draws, boxes): (Mat4, (u32, u32), &[ChunkBox]),
         pages: usize,
         size: (u32, u32),
         listed: (u32, u64),
@@ -385,7 +379,7 @@ impl Culling {
             self.groups = None;
         }
         if !boxes.is_empty() {
-            queue.write_buffer(&self.boxes, 0, bytemuck::cast_slice(boxes));
+            queue.write_buffer(&self.boxes, PARAMS_BYTES, bytemuck::cast_slice(boxes));
         }
         let words = (pages.max(1) as u64) * u64::from(PAGE_UNITS / 32);
         if words > self.visible_words {
@@ -402,6 +396,19 @@ impl Culling {
         if self.groups.as_ref().is_none_or(|g| g.made_for != bindings) {
             self.groups = self.make_groups(device, indirect, depth, bindings);
         }
+        if let Some(pyramid) = &self.pyramid {
+            let params = CullParams {
+                view_proj: view_proj.to_cols_array_2d(),
+                screen: [pyramid.size.0 as f32, pyramid.size.1 as f32],
+                near: crate::NEAR_PLANE,
+                mips: pyramid.mips,
+                surface_draws: draws.0,
+                skirt_draws: draws.1,
+                pad: [0; 2],
+            };
+            queue.write_buffer(&self.boxes, 0, bytemuck::bytes_of(&params));
+        }
+        self.draws = draws;
         self.listed = listed;
     }
 
@@ -418,19 +425,16 @@ impl Culling {
         bindings: Bindings,
     ) -> Option<Groups> {
         let pyramid = self.pyramid.as_ref()?;
-        let cull = self.params.each_ref().map(|params| {
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("occlusion culling"),
-                layout: &self.cull_layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: self.boxes.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: indirect.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: self.visible.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: self.counts.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&pyramid.view) },
-                ],
-            })
+        let cull = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("occlusion culling"),
+            layout: &self.cull_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 1, resource: self.boxes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: indirect.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: self.visible.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: self.counts.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&pyramid.view) },
+            ],
         });
         let first_level = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("depth pyramid, first level"),
@@ -491,77 +495,50 @@ impl Culling {
     /// Records the first phase's cull pass: block 1 of `indirect` keeps
     /// the chunks visible when last tested and in the frustum (block 2
     /// emptied), and the counts start again.
-    pub(crate) fn record_first_phase(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        draws: (u32, u32),
-        view_proj: Mat4,
-    ) {
+    pub(crate) fn record_first_phase(&self, encoder: &mut wgpu::CommandEncoder) {
         encoder.clear_buffer(&self.counts, 0, None);
-        self.dispatch(queue, encoder, draws, view_proj, 0);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("cull, first phase"),
+            timestamp_writes: None,
+        });
+        self.dispatch(&mut pass, 0);
     }
 
     /// Records the depth pyramid's reduction of the depth (what the first
     /// phase drew) and the second phase's cull pass: block 2 keeps what
     /// the pyramid does not hide and the first phase did not draw; every
     /// chunk's bit is its answer.
-    pub(crate) fn record_second_phase(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        draws: (u32, u32),
-        view_proj: Mat4,
-    ) {
+    pub(crate) fn record_second_phase(&self, encoder: &mut wgpu::CommandEncoder) {
         let (Some(pyramid), Some(bound)) = (&self.pyramid, &self.groups) else { return };
         let first = &self.first[usize::from(bound.made_for.multisampled)].0;
-        let first_group = &bound.first_level;
         let groups = |mip: u32| {
             let (w, h) = ((pyramid.size.0 >> mip).max(1), (pyramid.size.1 >> mip).max(1));
             (w.div_ceil(PYRAMID_GROUP), h.div_ceil(PYRAMID_GROUP))
         };
-        let levels = std::iter::once((first, first_group)).chain(pyramid.down_groups.iter().map(|g| (&self.down, g)));
+        // One pass: each dispatch sees what the one before wrote.
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("depth pyramid, cull"),
+            timestamp_writes: None,
+        });
+        let levels = std::iter::once((first, &bound.first_level))
+            .chain(pyramid.down_groups.iter().map(|group| (&self.down, group)));
         for (mip, (pipeline, group)) in (0..).zip(levels) {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("depth pyramid"),
-                timestamp_writes: None,
-            });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, group, &[]);
             let (x, y) = groups(mip);
             pass.dispatch_workgroups(x, y, 1);
         }
-        self.dispatch(queue, encoder, draws, view_proj, 1);
+        self.dispatch(&mut pass, 1);
     }
 
-    fn dispatch(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        (surface_draws, skirt_draws): (u32, u32),
-        view_proj: Mat4,
-        phase: u32,
-    ) {
-        let (Some(pyramid), Some(bound)) = (&self.pyramid, &self.groups) else { return };
-        let params = CullParams {
-            view_proj: view_proj.to_cols_array_2d(),
-            screen: [pyramid.size.0 as f32, pyramid.size.1 as f32],
-            near: crate::NEAR_PLANE,
-            mips: pyramid.mips,
-            surface_draws,
-            skirt_draws,
-            phase,
-            pad: 0,
-        };
-        queue.write_buffer(&self.params[phase as usize], 0, bytemuck::bytes_of(&params));
-        let group = &bound.cull[phase as usize];
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(if phase == 0 { "cull, first phase" } else { "cull, second phase" }),
-            timestamp_writes: None,
-        });
+    /// Records the cull pass of `phase` (0 or 1) into `pass`: one row of
+    /// workgroups for the first, two for the second (the shader tells them
+    /// apart by that; the second row works).
+    fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, phase: u32) {
+        let Some(bound) = &self.groups else { return };
         pass.set_pipeline(&self.cull);
-        pass.set_bind_group(0, group, &[]);
-        pass.dispatch_workgroups((surface_draws + skirt_draws).div_ceil(CULL_GROUP), 1, 1);
+        pass.set_bind_group(0, &bound.cull, &[]);
+        pass.dispatch_workgroups((self.draws.0 + self.draws.1).div_ceil(CULL_GROUP), 1 + phase, 1);
     }
 
     /// What the last culled frame drew, read back (waits for the GPU).
@@ -581,7 +558,7 @@ impl Culling {
 fn box_buffer(device: &wgpu::Device, capacity: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("chunk boxes"),
-        size: capacity * size_of::<ChunkBox>() as u64,
+        size: PARAMS_BYTES + capacity * size_of::<ChunkBox>() as u64,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })

@@ -846,12 +846,7 @@ impl PlanetRenderer {
             chunk_uniforms: Vec::new(),
             by_page: Vec::new(),
             indirect_draws,
-            // On by default where a GPU draws: on a CPU (lavapipe) every
-            // culled frame's compute passes kept about 1.8 MB more of the
-            // process's memory, inside the driver (heaptrack finds no heap
-            // left behind), 1.47 GB instead of 1.02 GB at the end of a
-            // 30 s flight.
-            occlusion_culling: culling.is_some() && on_a_gpu,
+            occlusion_culling: culling.is_some(),
             culling,
             chunk_boxes: Vec::new(),
             culled: false,
@@ -919,9 +914,8 @@ impl PlanetRenderer {
     /// Culls hidden chunks on the GPU in [`Self::render`] (two-phase
     /// occlusion culling, `crate::cull`: the same picture, fewer triangles
     /// rasterised), or draws every chunk of the list; returns whether it
-    /// now culls (never where draws are not indirect). On by default with
-    /// a GPU, off on a CPU adapter (lavapipe's memory grows with culled
-    /// frames).
+    /// now culls (never where draws are not indirect). On by default where
+    /// it can be.
     pub fn set_occlusion_culling(&mut self, on: bool) -> bool {
         self.occlusion_culling = on && self.culling.is_some();
         self.occlusion_culling
@@ -1192,7 +1186,9 @@ impl PlanetRenderer {
             let listed = ((self.draw_args.len() + self.skirt_args.len()) as u32, triangles);
             let bindings = Bindings { indirect: self.generations.0, targets: self.generations.1, multisampled: smooth };
             let bound = (&self.indirect, depth, bindings);
-            culling.prepare(&self.device, &self.queue, &self.chunk_boxes, pages, size, listed, bound);
+            let draws = (self.draw_args.len() as u32, self.skirt_args.len() as u32);
+            let frame = (view_proj, draws, self.chunk_boxes.as_slice());
+            culling.prepare(&self.device, &self.queue, frame, pages, size, listed, bound);
         }
         self.prepared = Some(Prepared { smooth, view: frame.view, sky: sky.is_some(), background: frame.background });
     }
@@ -1395,22 +1391,18 @@ impl PlanetRenderer {
         let copies = self.take_uploads();
         self.prepare_draws(frame, size, meshes);
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        let draws = (self.draw_args.len() as u32, self.skirt_args.len() as u32);
-        let view_proj =
-            view_projection(frame.forward, frame.up, frame.fov_y_degrees, size.0 as f32 / size.1.max(1) as f32);
-        let culling = self
-            .culling
-            .as_ref()
-            .filter(|c| self.occlusion_culling && self.indirect_draws && draws.0 + draws.1 > 0 && c.ready());
+        let draws = self.draw_args.len() + self.skirt_args.len();
+        let culling =
+            self.culling.as_ref().filter(|c| self.occlusion_culling && self.indirect_draws && draws > 0 && c.ready());
         self.culled = culling.is_some();
         let mut draw_calls = match culling {
             Some(culling) => {
-                culling.record_first_phase(&self.queue, &mut encoder, draws, view_proj);
+                culling.record_first_phase(&mut encoder);
                 let mut calls = {
                     let mut pass = self.begin_terrain_pass(&mut encoder, target, TerrainPass::FirstPhase);
                     self.draw_block(&mut pass, 0)
                 };
-                culling.record_second_phase(&self.queue, &mut encoder, draws, view_proj);
+                culling.record_second_phase(&mut encoder);
                 let mut pass = self.begin_terrain_pass(&mut encoder, target, TerrainPass::SecondPhase);
                 calls += self.draw_block(&mut pass, 1);
                 calls
