@@ -341,9 +341,10 @@ pub struct FrameStats {
     /// list, record the passes and submit them (not waiting for the GPU).
     pub encode_ms: f64,
     /// Draw commands recorded: per mesh buffer page one multi-draw for the
-    /// surfaces of each index format held and one for the skirts (or a
-    /// draw per chunk range where the device cannot start an indirect draw
-    /// at an instance), plus the sky pass's one.
+    /// surfaces of each index format held and one for the skirts, twice
+    /// where occlusion culling draws in two passes (or a draw per chunk
+    /// range where the device cannot start an indirect draw at an
+    /// instance), plus the sky pass's one.
     pub draw_calls: u32,
     /// Chunk ranges drawn, surface ranges and skirts (indirect draws, or
     /// direct draws without them).
