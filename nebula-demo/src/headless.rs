@@ -306,6 +306,11 @@ pub fn draw_frame(app: &mut PlanetApp, shot: &Shot, view: &View) -> anyhow::Resu
         // a game draws every frame, a settled shot only this one: draw it
         // once unread, as the frame before.
         app.draw(&target.view, shot.size, shot.background, shot.view);
+        // Finished before the frame measured starts.
+        app.gpu()
+            .device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .context("waiting for the frame before")?;
     }
     draw_into(app, shot, view, &target, true)
 }
