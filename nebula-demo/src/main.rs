@@ -154,8 +154,8 @@ struct Args {
     msaa: Switch,
     /// Leave out on the GPU the chunks nearer ones hide (the same picture
     /// from fewer triangles rasterised): `auto` and `on` are on wherever
-    /// the device draws indirectly; `off` draws the whole list (for
-    /// comparing).
+    /// the device can (indirect draws, compute); `off` draws the whole
+    /// list (for comparing).
     #[arg(long, value_enum, default_value_t = Switch::Auto)]
     occlusion_culling: Switch,
     /// Make the LOD tree's update and cull ahead on a thread of their own

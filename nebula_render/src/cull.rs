@@ -150,9 +150,11 @@ struct CullParams {
 /// Bytes of the parameters ahead of the boxes in the boxes buffer.
 const PARAMS_BYTES: u64 = size_of::<CullParams>() as u64;
 
-/// The key of a mesh's visibility bit: its page and first vertex (unique
-/// among the meshes held; a freed slot's bit passes to the next mesh
-/// there, which only decides the phase that draws it).
+/// The key of a mesh's visibility bit: its page and first vertex. Unique
+/// among the meshes of ordinary pages; a mesh too large for one (a page
+/// of its own, longer) may share a bit with the next page's, and a freed
+/// slot's bit passes to the next mesh there: a bit only decides which
+/// phase draws a chunk, never whether it is drawn where it may show.
 #[must_use]
 pub(crate) fn mesh_key(page: usize, first_vertex: u32) -> u32 {
     (page as u32) * PAGE_UNITS + first_vertex
@@ -246,6 +248,17 @@ const CULL_GROUP: u32 = 64;
 const PYRAMID_GROUP: u32 = 8;
 
 impl Culling {
+    /// Whether the device can cull: compute shaders, four storage buffers
+    /// and a storage texture in one compute stage (a downlevel device that
+    /// cannot draws the whole list instead).
+    pub(crate) fn fits(adapter: &wgpu::Adapter, device: &wgpu::Device) -> bool {
+        let limits = device.limits();
+        adapter.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+            && limits.max_storage_buffers_per_shader_stage >= 4
+            && limits.max_storage_textures_per_shader_stage >= 1
+            && limits.max_compute_workgroups_per_dimension >= 2
+    }
+
     pub(crate) fn new(device: &wgpu::Device, samples: u32) -> Self {
         let cull_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("occlusion culling"),
@@ -399,7 +412,7 @@ impl Culling {
         if let Some(pyramid) = &self.pyramid {
             let params = CullParams {
                 view_proj: view_proj.to_cols_array_2d(),
-                screen: [pyramid.size.0 as f32, pyramid.size.1 as f32],
+                screen: [pyramid.size.0.max(1) as f32, pyramid.size.1.max(1) as f32],
                 near: crate::NEAR_PLANE,
                 mips: pyramid.mips,
                 surface_draws: draws.0,

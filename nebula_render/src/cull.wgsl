@@ -127,14 +127,17 @@ fn occluded(b: ChunkBox) -> bool {
     let depth = frame.params.near / nearest;
     // The pixels whose centres the box may cover, a pixel more each way
     // for rounding, clamped to the target.
+    // (Clamped as floats: a corner near the near plane can lie past what
+    // an i32 holds.)
     let last = vec2<i32>(frame.params.screen) - 1;
-    let first_pixel = clamp(vec2<i32>(floor(low)) - 1, vec2<i32>(0), last);
-    let last_pixel = clamp(vec2<i32>(floor(high)) + 1, vec2<i32>(0), last);
-    if any(vec2<f32>(floor(high)) + 1.0 < vec2<f32>(0.0)) || any(floor(low) - 1.0 > vec2<f32>(last)) {
+    let lastf = vec2<f32>(last);
+    if any(floor(high) + 1.0 < vec2<f32>(0.0)) || any(floor(low) - 1.0 > lastf) {
         // Off the target altogether (the frustum test's rounding).
         return true;
     }
-    // The finest level where the rectangle is at most 64 texels.
+    let first_pixel = vec2<i32>(clamp(floor(low) - 1.0, vec2<f32>(0.0), lastf));
+    let last_pixel = vec2<i32>(clamp(floor(high) + 1.0, vec2<f32>(0.0), lastf));
+    // The finest level where the rectangle is at most 256 texels.
     var level = 0u;
     loop {
         let span = (last_pixel >> vec2<u32>(level)) - (first_pixel >> vec2<u32>(level)) + 1;

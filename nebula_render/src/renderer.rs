@@ -821,8 +821,9 @@ impl PlanetRenderer {
         });
         let (chunk_buffer, chunk_group) = chunk_ring(device, &chunk_layout, 256);
         let indirect_draws = device.features().contains(wgpu::Features::INDIRECT_FIRST_INSTANCE);
-        let indirect = indirect_buffer(device, 1024 * DRAW_ARGS_BYTES);
-        let culling = indirect_draws.then(|| Culling::new(device, if smooth.is_some() { SMOOTH_SAMPLES } else { 1 }));
+        let culling = (indirect_draws && Culling::fits(adapter, device))
+            .then(|| Culling::new(device, if smooth.is_some() { SMOOTH_SAMPLES } else { 1 }));
+        let indirect = indirect_buffer(device, 1024 * DRAW_ARGS_BYTES, culling.is_some());
         let timer = device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| GpuTimer::new(device, queue));
         Ok(Self {
             device: device.clone(),
@@ -919,7 +920,7 @@ impl PlanetRenderer {
     /// it can be.
     pub fn set_occlusion_culling(&mut self, on: bool) -> bool {
         self.occlusion_culling = on && self.culling.is_some();
-        self.occlusion_culling
+        self.occlusion_culling()
     }
 
     /// Whether [`Self::render`] culls hidden chunks.
@@ -1003,6 +1004,8 @@ impl PlanetRenderer {
     ) {
         self.finish_uploads();
         self.prepare_draws(frame, size, meshes);
+        // Drawn whole by `draw_terrain`, never culled.
+        self.culled = false;
     }
 
     /// [`Self::prepare`] but for the uploads, which the caller submits
@@ -1152,7 +1155,7 @@ impl PlanetRenderer {
             // first is the whole list where nothing culls).
             if 2 * block > self.indirect_capacity {
                 self.indirect_capacity = (2 * block).next_power_of_two();
-                self.indirect = indirect_buffer(&self.device, self.indirect_capacity);
+                self.indirect = indirect_buffer(&self.device, self.indirect_capacity, self.culling.is_some());
                 self.generations.0 += 1;
             }
             for start in [0, block] {
@@ -1273,11 +1276,13 @@ impl PlanetRenderer {
         })
     }
 
-    /// Records the prepared frame's terrain into `pass` (one begun by
-    /// [`Self::terrain_pass`]); returns the draw commands recorded: per mesh
-    /// buffer page a multi-draw-indirect for its surfaces (per index format)
-    /// and one for its skirts, or one draw per chunk range where the device
-    /// cannot start an indirect draw at an instance.
+    /// Records the terrain [`Self::prepare`] prepared into `pass` (one
+    /// begun by [`Self::terrain_pass`]), the whole list, not culled (a
+    /// frame [`Self::render`] drew must be prepared again first); returns
+    /// the draw commands recorded: per mesh buffer page a
+    /// multi-draw-indirect for its surfaces (per index format) and one for
+    /// its skirts, or one draw per chunk range where the device cannot
+    /// start an indirect draw at an instance.
     pub fn draw_terrain(&self, pass: &mut wgpu::RenderPass<'_>) -> u32 {
         self.draw_block(pass, 0)
     }
@@ -1735,12 +1740,14 @@ enum TerrainPass {
     SecondPhase,
 }
 
-fn indirect_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+/// The indirect buffer, `bytes` long; bound as storage where occlusion
+/// culling sets its instance counts (`culled`).
+fn indirect_buffer(device: &wgpu::Device, bytes: u64, culled: bool) -> wgpu::Buffer {
+    let storage = if culled { wgpu::BufferUsages::STORAGE } else { wgpu::BufferUsages::empty() };
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("indirect draws"),
         size: bytes,
-        // Storage: occlusion culling sets the instance counts.
-        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::STORAGE,
+        usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST | storage,
         mapped_at_creation: false,
     })
 }

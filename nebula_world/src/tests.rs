@@ -1591,8 +1591,9 @@ mod streaming {
             &mut { upload },
         );
         assert!(matches!(&refused, Err(crate::stream::StreamError::Panicked { .. })), "{:?}", refused.err());
-        // Panics in the bounds the LOD tree asks for on the frame thread too:
-        // the update fails, the tree starts again from its roots.
+        // Panics in the bounds the LOD tree asks for (its survey, or a
+        // column's layers) on the frame thread too: the update fails, the
+        // tree starts again from its roots.
         let flaky = Arc::new(Flaky {
             planet: planet(),
             panics: AtomicUsize::new(40),
