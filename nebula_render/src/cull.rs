@@ -70,8 +70,9 @@ impl MeshBox {
         let targets = || mesh.vertices.iter().map(nebula_meshing::RenderVertex::target_position);
         let count = mesh.vertices.len().max(1) as f64;
         let origin = targets().fold(DVec3::ZERO, |sum, p| sum + p) / count;
-        let up = origin.normalize_or(DVec3::Z);
-        let axes = box_axes(up);
+        // The axes `relative` makes from the stored (f32) vertical.
+        let up = origin.normalize_or(DVec3::Z).as_vec3();
+        let axes = box_axes(up.as_dvec3());
         let (mut low, mut high) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for vertex in &mesh.vertices {
             let target = vertex.target_position();
@@ -85,7 +86,7 @@ impl MeshBox {
             (low, high) = (DVec3::ZERO, DVec3::ZERO);
         }
         // A centimetre spare for the f32 rounding of the extents.
-        Self { origin, up: up.as_vec3(), low: (low - 0.01).as_vec3(), high: (high + 0.01).as_vec3() }
+        Self { origin, up, low: (low - 0.01).as_vec3(), high: (high + 0.01).as_vec3() }
     }
 
     /// The box camera relative to `eye` as the cull pass reads it,
@@ -216,8 +217,8 @@ pub(crate) struct Culling {
     pyramid: Option<Pyramid>,
     /// The frame's surface and skirt draws.
     draws: (u32, u32),
-    /// The last frame's list: draws and triangles, for the figures.
-    listed: (u32, u64),
+    /// The triangles the frame's list holds, for the figures.
+    listed_triangles: u64,
     /// The bind groups of both cull passes and of the pyramid's first
     /// level, made again only when what they bind changes, and what they
     /// were made for: the renderer's indirect buffer and depth targets
@@ -231,6 +232,28 @@ struct Groups {
     cull: wgpu::BindGroup,
     first_level: wgpu::BindGroup,
     made_for: Bindings,
+}
+
+/// A frame as [`Culling::prepare`] takes it.
+#[derive(Clone, Copy)]
+pub(crate) struct CullFrame<'a> {
+    /// The terrain's camera-relative view-projection.
+    pub view_proj: Mat4,
+    /// Surface and skirt draws in each block of the indirect buffer.
+    pub draws: (u32, u32),
+    /// Triangles the list holds (surfaces and skirts).
+    pub listed_triangles: u64,
+    /// The chunks' boxes by instance (as the chunk table).
+    pub boxes: &'a [ChunkBox],
+    /// Mesh pages held (each has `PAGE_UNITS` visibility bits).
+    pub pages: usize,
+    /// The target's size, pixels.
+    pub size: (u32, u32),
+    /// The indirect buffer (both blocks) and the depth the first phase
+    /// draws into, with what says whether they changed.
+    pub indirect: &'a wgpu::Buffer,
+    pub depth: &'a wgpu::TextureView,
+    pub bindings: Bindings,
 }
 
 /// What the renderer binds into [`Culling`]'s groups: its generations of
@@ -322,25 +345,31 @@ impl Culling {
             },
             count: None,
         };
-        let first = [1, samples].map(|samples| {
-            let multisampled = samples > 1;
+        // The first level's pipeline from single-sample depth, and from
+        // multisampled depth where the renderer draws it (the same
+        // pipeline otherwise: index 1 is what `multisampled` picks).
+        let first_level = |samples: u32| {
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("depth pyramid, first level"),
-                entries: &[texture(0, wgpu::TextureSampleType::Depth, multisampled), level_out],
+                entries: &[texture(0, wgpu::TextureSampleType::Depth, samples > 1), level_out],
             });
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("depth pyramid"),
                 source: wgpu::ShaderSource::Wgsl(pyramid_shader(samples).into()),
             });
-            (pipeline(&module, &layout, "hzb_first"), layout)
-        });
+            (pipeline(&module, &layout, "hzb_first"), layout, module)
+        };
+        let (single, single_layout, pyramid_module) = first_level(1);
+        let multisampled = if samples > 1 {
+            let (pipeline, layout, _) = first_level(samples);
+            (pipeline, layout)
+        } else {
+            (single.clone(), single_layout.clone())
+        };
+        let first = [(single, single_layout), multisampled];
         let down_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("depth pyramid, coarser levels"),
             entries: &[level_out, texture(2, unfiltered, false)],
-        });
-        let pyramid_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("depth pyramid"),
-            source: wgpu::ShaderSource::Wgsl(pyramid_shader(1).into()),
         });
         let down = pipeline(&pyramid_module, &down_layout, "hzb_down");
         let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
@@ -364,28 +393,17 @@ impl Culling {
             ),
             pyramid: None,
             draws: (0, 0),
-            listed: (0, 0),
+            listed_triangles: 0,
             groups: None,
         }
     }
 
-    /// Writes the frame's parameters (`view_proj`, `draws`: its surface
-    /// and skirt draws) and chunk boxes (by instance, as the chunk table),
-    /// sizes the visibility bits for `pages` mesh pages and the pyramid
-    /// for `size`, makes the bind groups again if what they bind changed
-    /// (`indirect` and `depth`, as `bindings` says), and remembers the
+    /// Writes `frame`'s parameters and chunk boxes, sizes the visibility
+    /// bits for its mesh pages and the pyramid for its target, makes the
+    /// bind groups again if what they bind changed, and remembers the
     /// list's size for the figures.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn prepare(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        (view_proj, draws, boxes): (Mat4, (u32, u32), &[ChunkBox]),
-        pages: usize,
-        size: (u32, u32),
-        listed: (u32, u64),
-        (indirect, depth, bindings): (&wgpu::Buffer, &wgpu::TextureView, Bindings),
-    ) {
+    pub(crate) fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, frame: &CullFrame<'_>) {
+        let CullFrame { view_proj, draws, listed_triangles, boxes, pages, size, indirect, depth, bindings } = *frame;
         if boxes.len() as u64 > self.box_capacity {
             self.box_capacity = (boxes.len() as u64).next_power_of_two();
             self.boxes = box_buffer(device, self.box_capacity);
@@ -422,7 +440,7 @@ impl Culling {
             queue.write_buffer(&self.boxes, 0, bytemuck::bytes_of(&params));
         }
         self.draws = draws;
-        self.listed = listed;
+        self.listed_triangles = listed_triangles;
     }
 
     /// Whether [`Self::prepare`] made everything the passes bind.
@@ -562,8 +580,8 @@ impl Culling {
             first_phase_triangles: u64::from(counts[0]),
             second_phase_triangles: u64::from(counts[1]),
             draws: [counts[2], counts[3]],
-            listed_draws: self.listed.0,
-            listed_triangles: self.listed.1,
+            listed_draws: self.draws.0 + self.draws.1,
+            listed_triangles: self.listed_triangles,
         })
     }
 }

@@ -14,7 +14,7 @@ use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
 use wgpu::util::{DrawIndexedIndirectArgs, DrawIndirectArgs};
 
 use crate::arena::{MeshArena, Slot};
-use crate::cull::{Bindings, ChunkBox, CullFigures, Culling, MeshBox, mesh_key};
+use crate::cull::{Bindings, ChunkBox, CullFigures, CullFrame, Culling, MeshBox, mesh_key};
 
 /// The colour format of offscreen targets: plain UNORM, so the clear
 /// colour is stored exactly (the shader encodes sRGB itself).
@@ -1186,13 +1186,18 @@ impl PlanetRenderer {
         {
             let triangles = self.draw_args.iter().map(|a| u64::from(a.index_count / 3)).sum::<u64>()
                 + self.skirt_args.iter().map(|a| u64::from(a.vertex_count / 3)).sum::<u64>();
-            let pages = self.page_groups.len();
-            let listed = ((self.draw_args.len() + self.skirt_args.len()) as u32, triangles);
-            let bindings = Bindings { indirect: self.generations.0, targets: self.generations.1, multisampled: smooth };
-            let bound = (&self.indirect, depth, bindings);
-            let draws = (self.draw_args.len() as u32, self.skirt_args.len() as u32);
-            let frame = (view_proj, draws, self.chunk_boxes.as_slice());
-            culling.prepare(&self.device, &self.queue, frame, pages, size, listed, bound);
+            let frame = CullFrame {
+                view_proj,
+                draws: (self.draw_args.len() as u32, self.skirt_args.len() as u32),
+                listed_triangles: triangles,
+                boxes: &self.chunk_boxes,
+                pages: self.page_groups.len(),
+                size,
+                indirect: &self.indirect,
+                depth,
+                bindings: Bindings { indirect: self.generations.0, targets: self.generations.1, multisampled: smooth },
+            };
+            culling.prepare(&self.device, &self.queue, &frame);
         }
         self.prepared = Some(Prepared { smooth, view: frame.view, sky: sky.is_some(), background: frame.background });
     }
