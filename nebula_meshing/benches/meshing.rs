@@ -157,14 +157,21 @@ fn meshing(c: &mut Criterion) {
         visible_block_faces(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut unit);
         let unit_tris = 2 * unit.num_quads();
         let mut mesher = ChunkMesher::new();
-        let surface_tris = mesher.mesh(voxels, planet.layout()).expect("valid chunk").triangle_count();
+        let surface = mesher.mesh(voxels, planet.layout()).expect("valid chunk");
+        let surface_tris = surface.triangle_count();
+        // What a change that should not alter the meshes can be checked by.
+        let fingerprint = {
+            let mut hasher = std::hash::DefaultHasher::new();
+            std::hash::Hash::hash(&format!("{:?}{:?}", surface.vertices(), surface.indices()), &mut hasher);
+            std::hash::Hasher::finish(&hasher)
+        };
         let mut context = ChunkLodContext::uniform(key.lod);
         context.set(FaceDirection::PosX, NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 });
         let mut buffer = ChunkMeshBuffer::new();
         let full = mesh_chunk(&source, key, &context, MeshOptions::default(), &mut buffer).expect("valid chunk");
         eprintln!(
             "{name}: greedy quads {quads} (= {} tris), ours {surface_tris} surface + {} skirt tris, \
-             visible_block_faces {unit_tris} tris; T-junction repair +{} tris",
+             visible_block_faces {unit_tris} tris; T-junction repair +{} tris; surface mesh {fingerprint:016x}",
             2 * quads,
             full.skirt_triangle_count(),
             surface_tris as i64 - 2 * quads as i64

@@ -4,9 +4,10 @@
 //! [`VoxelSource`](nebula_voxel::VoxelSource) to a finished [`ChunkMesh`]:
 //!
 //! 1. voxels with a one-voxel padding read across chunk and cube-face edges;
-//! 2. greedy quads on the padded 34³ array (material-aware), from
-//!    block-mesh-bgm's bitmask mesher; block-mesh's `greedy_quads` is the
-//!    reference its output is tested against;
+//! 2. greedy quads on the padded 34³ array (material-aware) from bitmasks
+//!    of its solid voxels: block-mesh-bgm's quads (tested equal), made from
+//!    our voxel rows; block-mesh's `greedy_quads` is the reference for the
+//!    faces they cover;
 //! 3. T-junction-free triangulation, decided in integer lattice coordinates
 //!    (see [`ChunkMesher`]): every vertex on a quad's edge joins its outline,
 //!    and on chunk boundary planes a canonical set of lattice points does
@@ -57,6 +58,7 @@
 //! ```
 
 mod error;
+mod greedy;
 mod mesh;
 mod mesher;
 mod pipeline;

@@ -459,7 +459,7 @@ proptest! {
         prop_assert_eq!(mesh.indices(), again.indices());
     }
 
-    /// The binary greedy mesher (block-mesh-bgm) covers exactly the faces
+    /// The bitmask greedy quads (`crate::greedy`) cover exactly the faces
     /// block-mesh's greedy meshing covers, each once, with the material of
     /// the voxel it belongs to: block-mesh stays the reference.
     #[test]
@@ -489,8 +489,8 @@ proptest! {
         };
         let mut reference = GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME);
         greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut reference);
-        let mut binary = block_mesh_bgm::BinaryGreedyQuadsBuffer::new();
-        block_mesh_bgm::binary_greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut binary);
+        let mut binary = greedy::GreedyQuads::new();
+        binary.mesh(&voxels);
         let (expected, got) = (covered(&reference.quads), covered(&binary.quads));
         prop_assert!(got.values().all(|&n| n == 1), "a face covered twice");
         prop_assert_eq!(expected, got);

@@ -76,7 +76,7 @@ mod planet;
 mod source;
 mod voxel;
 
-pub use chunk::{ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PADDED_COLUMNS, PaddedChunkShape};
+pub use chunk::{ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PADDED_COLUMNS, PADDED_ROWS, PaddedChunkShape};
 pub use edits::EditedSource;
 pub use error::VoxelError;
 pub use layout::{CHUNK_SIZE, ChunkColumn, ChunkKey, ChunkLayout, MAX_LOD, VoxelCoord};

@@ -711,8 +711,70 @@ fn any_face() -> impl Strategy<Value = CubeFace> {
     (0usize..6).prop_map(|i| CubeFace::ALL[i])
 }
 
+/// Random padded voxels: air above a random ground per column, with random
+/// holes and overhangs, several materials, and some columns recorded as
+/// covered above (or no record at all).
+fn random_chunk(seed: u64, record_cover: bool) -> ChunkVoxels {
+    let mut state = seed | 1;
+    let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+    for z in 0..PADDED_CHUNK_SIZE {
+        for x in 0..PADDED_CHUNK_SIZE {
+            let ground = (unit_random(&mut state) * 40.0) as u32;
+            for y in 0..PADDED_CHUNK_SIZE {
+                let roll = unit_random(&mut state);
+                let solid = if y < ground { roll > 0.1 } else { roll < 0.05 };
+                let material = 1 + (unit_random(&mut state) * 3.0) as u8;
+                voxels.set([x, y, z], if solid { Voxel::from_material(material) } else { Voxel::AIR });
+            }
+            if record_cover {
+                voxels.set_covered_above((x, z), unit_random(&mut state) < 0.3);
+            }
+        }
+    }
+    voxels
+}
+
+/// [`ChunkVoxels::sky_floors`] as it was read, column by column down from
+/// the top: the reference the row-mask version must equal.
+fn sky_floors_voxel_by_voxel(voxels: &ChunkVoxels) -> Vec<u8> {
+    let size = PADDED_CHUNK_SIZE;
+    let mut floors = Vec::new();
+    for z in 0..size {
+        for x in 0..size {
+            let solid = |y: u32| voxels.get([x, y, z]).unwrap().is_solid();
+            if voxels.covered_above((x, z)).unwrap_or_else(|| solid(size - 1)) {
+                floors.push(size as u8);
+                continue;
+            }
+            let mut floor = size;
+            while floor > 0 && !solid(floor - 1) {
+                floor -= 1;
+            }
+            floors.push(floor as u8);
+        }
+    }
+    floors
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    /// Solid rows hold each row's solid voxels bit by bit, and the sky
+    /// floors found from them are the floors read voxel by voxel.
+    #[test]
+    fn solid_rows_and_sky_floors_match_the_voxels(seed in any::<u64>(), record_cover in any::<bool>()) {
+        let voxels = random_chunk(seed, record_cover);
+        let mut rows = [0; PADDED_ROWS];
+        voxels.solid_rows(&mut rows);
+        for (n, &row) in rows.iter().enumerate() {
+            let (y, z) = (n as u32 % PADDED_CHUNK_SIZE, n as u32 / PADDED_CHUNK_SIZE);
+            let expected = (0..PADDED_CHUNK_SIZE)
+                .filter(|&x| voxels.get([x, y, z]).unwrap().is_solid())
+                .fold(0u64, |bits, x| bits | 1 << x);
+            prop_assert_eq!(row, expected, "row y {} z {}", y, z);
+        }
+        prop_assert_eq!(voxels.sky_floors().to_vec(), sky_floors_voxel_by_voxel(&voxels));
+    }
 
     /// Every face-adjacent padding voxel, across chunk and cube-face edges,
     /// equals the voxel it stands for.
