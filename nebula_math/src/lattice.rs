@@ -187,7 +187,17 @@ impl Cubesphere {
     pub fn lattice_plane_normal(&self, face: CubeFace, along_u: bool, coord: i64) -> DVec3 {
         let half = f64::from(self.resolution / 2);
         let t = (coord as f64 - half) / half;
-        let warped = self.map.direction(DVec3::new(t, 0.0, 1.0));
+        self.warped_plane_normal(face, along_u, self.map.warp(t))
+    }
+
+    /// [`Cubesphere::lattice_plane_normal`] from the warp of the plane's
+    /// cube coordinate ([`Cubesphere::cube_warp`] of `coord − N/2`), bit
+    /// for bit, for a caller that has it (a mesher keeps a chunk's).
+    #[must_use]
+    pub fn warped_plane_normal(&self, face: CubeFace, along_u: bool, warp: f64) -> DVec3 {
+        // `SphereMap::direction` of (t, 0, 1): both maps warp 0 to 0 and 1
+        // to 1 exactly.
+        let warped = DVec3::new(warp, 0.0, 1.0).normalize();
         // `warped` is (w, 0, 1) normalised: the plane is p·axis = w·(p·n).
         let w = warped.x / warped.z;
         let axis = if along_u { face.u_axis() } else { face.v_axis() }.as_dvec3();

@@ -325,10 +325,10 @@ impl ChunkMesher {
 
     fn mesh_into(&mut self, voxels: &ChunkVoxels, layout: &ChunkLayout, mesh: &mut ChunkMesh) -> Result<(), MeshError> {
         let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
-        self.greedy.mesh(voxels);
-        let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         self.next_stamp();
         self.column_warps.start(voxels.key(), layout)?;
+        self.greedy.mesh(voxels);
+        let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         if self.plugs_for != Some(voxels.key()) {
             self.plugs_for = None;
             self.sky_floors = voxels.sky_floors_from(&self.greedy.rows);
@@ -382,24 +382,18 @@ impl ChunkMesher {
         mesh.morph_world.reserve(4 * quads);
         mesh.sources.reserve(4 * quads);
         mesh.indices.reserve(8 * quads);
-        let mut result = Ok(());
-        'faces: for (group, face) in groups.iter().zip(faces) {
+        for (group, face) in groups.iter().zip(faces) {
             let normal = face.signed_normal().to_array();
             let first = mesh.indices.len();
             for quad in group {
                 let corners = local_corners(face, quad);
                 let material = voxels.get(quad.minimum).map_or(0, |v| v.material());
-                if let Err(error) = self.triangulate(corners, normal, material, voxels, layout, mesh) {
-                    result = Err(error);
-                    break 'faces;
-                }
+                self.triangulate(corners, normal, material, voxels, layout, mesh);
             }
             mesh.surface_side_ranges[side_of(normal) as usize] = first..mesh.indices.len();
         }
         self.greedy.quads.groups = groups;
-        if result.is_ok() {
-            result = self.zip_coarse_edges(voxels, layout, mesh);
-        }
+        let result = self.zip_coarse_edges(voxels, layout, mesh);
         mesh.surface_index_count = mesh.indices.len();
         self.plugs_for = None;
         result
@@ -567,7 +561,7 @@ impl ChunkMesher {
         mesh: &mut ChunkMesh,
     ) -> Result<u32, MeshError> {
         if local.iter().all(|&c| (0..=LAST).contains(&c)) {
-            return self.vertex(local, side, material, voxels, layout, mesh);
+            return Ok(self.vertex(local, side, material, voxels, layout, mesh));
         }
         let key = mesh.key;
         let sphere = layout.sphere();
@@ -588,7 +582,7 @@ impl ChunkMesher {
         voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
-    ) -> Result<(), MeshError> {
+    ) {
         let side = side_of(normal);
         // block-mesh order: 0 = (min u, min v), 1 = (max u, min v),
         // 2 = (min u, max v), 3 = (max u, max v).
@@ -608,53 +602,46 @@ impl ChunkMesher {
         let (mut index_a, mut index_b) = (std::mem::take(&mut self.index_a), std::mem::take(&mut self.index_b));
         index_a.clear();
         index_b.clear();
-        let mut result = Ok(());
         for (chain, indices) in [(&chain_a, &mut index_a), (&chain_b, &mut index_b)] {
             for &point in chain.iter() {
-                match self.vertex(point, side, material, voxels, layout, mesh) {
-                    Ok(index) => indices.push(index),
-                    Err(error) => result = Err(error),
-                }
+                indices.push(self.vertex(point, side, material, voxels, layout, mesh));
             }
         }
-        if result.is_ok() {
-            // Lattice space (x = u, y = radial, z = v) is left-handed in the
-            // world, so a triangle facing `normal` counter-clockwise in the
-            // world is clockwise here. A step along chain A, (a, a', b), and
-            // a step along chain B, (a, b, b'), turn opposite ways, so one
-            // test per quad orients them all.
-            let (ab, ac) = (sub(chain_a[1], chain_a[0]), sub(chain_b[1], chain_a[0]));
-            let cross = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
-            let step_a_keeps_order = cross[0] * normal[0] + cross[1] * normal[1] + cross[2] * normal[2] < 0;
-            let indices = &mut mesh.indices;
-            let mut step_a = |a0: u32, a1: u32, b: u32| {
-                indices.extend(if step_a_keeps_order { [a0, a1, b] } else { [a0, b, a1] });
-            };
-            // The first triangle (tl, a1, b1) is a step along A from tl.
-            step_a(index_a[0], index_a[1], index_b[1]);
-            let (len_a, len_b) = (chain_a.len(), chain_b.len());
-            // Both chains run from tl to br, so the lattice distance from tl
-            // is arc length: advance the chain that lags.
-            let progress = |chain: &[[i32; 3]], k: usize| quad_len(chain[0], chain[k]);
-            let (mut i, mut j) = (1, 1);
-            while i < len_a - 2 || j < len_b - 2 {
-                if j == len_b - 2 || (i < len_a - 2 && progress(&chain_a, i + 1) <= progress(&chain_b, j + 1)) {
-                    i += 1;
-                    step_a(index_a[i - 1], index_a[i], index_b[j]);
-                } else {
-                    j += 1;
-                    // (a, b, b') turns the other way: reversed order.
-                    step_a(index_b[j], index_b[j - 1], index_a[i]);
-                }
+        // Lattice space (x = u, y = radial, z = v) is left-handed in the
+        // world, so a triangle facing `normal` counter-clockwise in the
+        // world is clockwise here. A step along chain A, (a, a', b), and
+        // a step along chain B, (a, b, b'), turn opposite ways, so one
+        // test per quad orients them all.
+        let (ab, ac) = (sub(chain_a[1], chain_a[0]), sub(chain_b[1], chain_a[0]));
+        let cross = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
+        let step_a_keeps_order = cross[0] * normal[0] + cross[1] * normal[1] + cross[2] * normal[2] < 0;
+        let indices = &mut mesh.indices;
+        let mut step_a = |a0: u32, a1: u32, b: u32| {
+            indices.extend(if step_a_keeps_order { [a0, a1, b] } else { [a0, b, a1] });
+        };
+        // The first triangle (tl, a1, b1) is a step along A from tl.
+        step_a(index_a[0], index_a[1], index_b[1]);
+        let (len_a, len_b) = (chain_a.len(), chain_b.len());
+        // Both chains run from tl to br, so the lattice distance from tl
+        // is arc length: advance the chain that lags.
+        let progress = |chain: &[[i32; 3]], k: usize| quad_len(chain[0], chain[k]);
+        let (mut i, mut j) = (1, 1);
+        while i < len_a - 2 || j < len_b - 2 {
+            if j == len_b - 2 || (i < len_a - 2 && progress(&chain_a, i + 1) <= progress(&chain_b, j + 1)) {
+                i += 1;
+                step_a(index_a[i - 1], index_a[i], index_b[j]);
+            } else {
+                j += 1;
+                // (a, b, b') turns the other way: reversed order.
+                step_a(index_b[j], index_b[j - 1], index_a[i]);
             }
-            // Last triangle (a, br, b) closes with a step along A onto br.
-            step_a(index_a[len_a - 2], index_a[len_a - 1], index_b[len_b - 2]);
         }
+        // Last triangle (a, br, b) closes with a step along A onto br.
+        step_a(index_a[len_a - 2], index_a[len_a - 1], index_b[len_b - 2]);
         self.chain_a = chain_a;
         self.chain_b = chain_b;
         self.index_a = index_a;
         self.index_b = index_b;
-        result
     }
 
     /// Pushes `from` and every vertex strictly between `from` and `to` (not
@@ -714,21 +701,22 @@ impl ChunkMesher {
         voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
-    ) -> Result<u32, MeshError> {
+    ) -> u32 {
         let slot = point_index(local) * 6 + side as usize;
         if self.vertex_slot[slot].0 == self.stamp {
-            return Ok(self.vertex_slot[slot].1);
+            return self.vertex_slot[slot].1;
         }
         let key = mesh.key;
-        let world = self.world_position(key, layout, local)?;
-        let even = local.map(|c| c - c.rem_euclid(2));
-        let morph = self.world_position(key, layout, even)?;
+        let world = self.world_position(key, layout, local);
+        // Rounded down to even (local coordinates are not negative).
+        let even = [local[0] & !1, local[1] & !1, local[2] & !1];
+        let morph = self.world_position(key, layout, even);
         let normal = self.normal(key, layout, local, side, world);
         let sky_light = self.sky_light(voxels, local, side);
         let index =
             mesh.push_vertex(world, morph, normal, (material, sky_light), 0, VertexSource::Surface { local, side });
         self.vertex_slot[slot] = (self.stamp, index);
-        Ok(index)
+        index
     }
 
     /// How much sky lights lattice point `local` on a face looking towards
@@ -794,10 +782,10 @@ impl ChunkMesher {
 
     /// The canonical world position of local lattice point `local`: the
     /// column's direction is computed once per chunk, each point once.
-    fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> Result<DVec3, MeshError> {
+    fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> DVec3 {
         let index = point_index(local);
         if self.point_world[index].0 == self.stamp {
-            return Ok(self.point_world[index].1);
+            return self.point_world[index].1;
         }
         let sphere = layout.sphere();
         let column = local[0] as usize * POINTS + local[2] as usize;
@@ -815,7 +803,7 @@ impl ChunkMesher {
         let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
         let world = sphere.position_on_column(self.column_direction[column].1, layer as i32);
         self.point_world[index] = (self.stamp, world);
-        Ok(world)
+        world
     }
 
     /// The exact normal of a voxel face looking towards `side` at `local`:
@@ -841,11 +829,19 @@ impl ChunkMesher {
         }
         let slot = if axis == 0 { local[0] as usize } else { POINTS + local[2] as usize };
         if self.wall_normal[slot].0 != self.stamp {
-            let span = layout.voxel_span(key.lod);
-            let chunk = i64::from(CHUNK_SIZE) * span;
-            let (along_u, first) = if axis == 0 { (true, key.x) } else { (false, key.y) };
-            let coord = i64::from(first) * chunk + i64::from(local[axis]) * span;
-            self.wall_normal[slot] = (self.stamp, layout.sphere().lattice_plane_normal(key.face, along_u, coord));
+            // The plane's coordinate is its columns' (local x is u, local z
+            // is v), whose warp the chunk keeps.
+            let sphere = layout.sphere();
+            let along_u = axis == 0;
+            let warp = self.column_warps.warp(sphere, self.stamp, usize::from(!along_u), local[axis]);
+            let normal = sphere.warped_plane_normal(key.face, along_u, warp);
+            debug_assert_eq!(normal, {
+                let span = layout.voxel_span(key.lod);
+                let first = if along_u { key.x } else { key.y };
+                let coord = i64::from(first) * i64::from(CHUNK_SIZE) * span + i64::from(local[axis]) * span;
+                sphere.lattice_plane_normal(key.face, along_u, coord)
+            });
+            self.wall_normal[slot] = (self.stamp, normal);
         }
         (self.wall_normal[slot].1 * sign).as_vec3()
     }
@@ -911,17 +907,29 @@ impl ColumnWarps {
         };
         let cube = nebula_math::IVec3::new(self.first[0] + step(0), self.first[1] + step(1), self.first[2] + step(2));
         let point = LatticePoint { cube, layer: 0 };
-        let (normal, along) = (self.normal, &mut self.along);
-        sphere.column_direction_with(point, |axis, c| {
+        let (x_warp, z_warp) = (self.warp(sphere, stamp, 0, x), self.warp(sphere, stamp, 1, z));
+        let normal = self.normal;
+        sphere.column_direction_with(point, |axis, _| {
             if axis == normal_axis {
-                return normal;
+                normal
+            } else if axis == x_axis {
+                x_warp
+            } else {
+                z_warp
             }
-            let slot = if axis == x_axis { &mut along[0][x as usize] } else { &mut along[1][z as usize] };
-            if slot.0 != stamp {
-                *slot = (stamp, sphere.cube_warp(c));
-            }
-            slot.1
         })
+    }
+
+    /// The warp of the cube coordinate of the chunk's lattice line at
+    /// `local` along its x (`along` 0) or z (`along` 1), made on first
+    /// use under `stamp`.
+    fn warp(&mut self, sphere: &Cubesphere, stamp: u32, along: usize, local: i32) -> f64 {
+        let slot = &mut self.along[along][local as usize];
+        if slot.0 != stamp {
+            let c = self.first[self.axes[1 + along]] + local * self.span;
+            *slot = (stamp, sphere.cube_warp(c));
+        }
+        slot.1
     }
 }
 
@@ -1190,39 +1198,36 @@ impl FaceAxes {
         count: i32,
         quads: &mut Vec<UnorientedQuad>,
     ) {
-        let mut padded = [0; 3];
-        padded[self.n] = start[0] as u32 + 1;
-        padded[self.u] = start[1] as u32 + 1;
-        padded[self.v] = start[2] as u32 + 1;
-        let stride = |axis: usize| {
-            let mut unit = [0; 3];
-            unit[axis] = 1;
-            PaddedChunkShape::linearize(unit) as usize
-        };
+        // Coordinates picked by comparison, not stored at picked indices
+        // (see `ChunkMesher::walk_edge`).
+        let pick = |k: usize| if k == self.n { start[0] } else if k == self.u { start[1] } else { start[2] } as u32 + 1;
+        let padded = [pick(0), pick(1), pick(2)];
+        let stride = |axis: usize| PaddedChunkShape::linearize(unit_along(axis).map(|c| c as u32)) as usize;
         let (first, step_along, step_out) =
             (PaddedChunkShape::linearize(padded) as usize, stride(along), stride(self.n));
-        // The run so far: first step, length, voxel.
-        let mut run: Option<(u32, u32, Voxel)> = None;
+        let unit = unit_along(along).map(|c| c as u32);
+        // The run so far: its first step and its material (air's, 0, while
+        // there is none).
+        let (mut run_from, mut run_material) = (0, Voxel::AIR.material());
         for step in 0..=count as u32 {
-            let face = (step < count as u32)
-                .then(|| {
-                    let at = first + step as usize * step_along;
-                    let beyond = if self.positive { at + step_out } else { at - step_out };
-                    let voxel = voxels[at];
-                    (voxel.is_solid() && !voxels[beyond].is_solid() && !is_covered(at)).then_some(voxel)
-                })
-                .flatten();
-            match (&mut run, face) {
-                (Some((_, length, voxel)), Some(next)) if *voxel == next => *length += 1,
-                (_, next) => {
-                    if let Some((from, length, _)) = run.take() {
-                        let mut minimum = padded;
-                        minimum[along] += from;
-                        let (width, height) = if along == self.u { (length, 1) } else { (1, length) };
-                        quads.push(UnorientedQuad { minimum, width, height });
-                    }
-                    run = next.map(|voxel| (step, 1, voxel));
+            let mut material = Voxel::AIR.material();
+            if step < count as u32 {
+                let at = first + step as usize * step_along;
+                let beyond = if self.positive { at + step_out } else { at - step_out };
+                let voxel = voxels[at];
+                if voxel.is_solid() && !voxels[beyond].is_solid() && !is_covered(at) {
+                    material = voxel.material();
                 }
+            }
+            if material != run_material {
+                if run_material != Voxel::AIR.material() {
+                    let at = |k: usize| padded[k] + run_from * unit[k];
+                    let minimum = [at(0), at(1), at(2)];
+                    let length = step - run_from;
+                    let (width, height) = if along == self.u { (length, 1) } else { (1, length) };
+                    quads.push(UnorientedQuad { minimum, width, height });
+                }
+                (run_from, run_material) = (step, material);
             }
         }
     }

@@ -129,12 +129,17 @@ impl ChunkVoxels {
             // gives the top floor too).
             let mut unfound = every_column;
             if let Some(words) = &self.covered_above {
-                for (x, floor) in floors.iter_mut().enumerate() {
-                    let n = x + size * z;
-                    if words[n / 64] & (1 << (n % 64)) != 0 {
-                        *floor = size as u8;
-                        unfound &= !(1 << x);
-                    }
+                // The slab's 34 bits of the record, which may straddle two
+                // words.
+                let first = size * z;
+                let (word, shift) = (first / 64, first % 64);
+                let low = words[word] >> shift;
+                let high = if shift + size > 64 { words[word + 1] << (64 - shift) } else { 0 };
+                let mut covered = (low | high) & every_column;
+                unfound &= !covered;
+                while covered != 0 {
+                    floors[covered.trailing_zeros() as usize] = size as u8;
+                    covered &= covered - 1;
                 }
             }
             for (y, &row) in slab.iter().enumerate().rev() {
