@@ -170,10 +170,11 @@ fn meshing(c: &mut Criterion) {
         let mut buffer = ChunkMeshBuffer::new();
         let full = mesh_chunk(&source, key, &context, MeshOptions::default(), &mut buffer).expect("valid chunk");
         eprintln!(
-            "{name}: greedy quads {quads} (= {} tris), ours {surface_tris} surface + {} skirt tris, \
+            "{name}: greedy quads {quads} (= {} tris), ours {surface_tris} surface + {} skirt tris ({} vertices), \
              visible_block_faces {unit_tris} tris; T-junction repair +{} tris; surface mesh {fingerprint:016x}",
             2 * quads,
             full.skirt_triangle_count(),
+            surface.vertex_count(),
             surface_tris as i64 - 2 * quads as i64
         );
         group.bench_function(BenchmarkId::new(format!("{name}/greedy_quads"), format!("quads={quads}")), |b| {

@@ -95,7 +95,7 @@ pub struct ChunkMesher {
     /// A bit per padded voxel: a kept greedy quad touching a boundary
     /// plane covers its face (of the face direction being meshed).
     covered: Vec<u64>,
-    /// Per (lattice point, side), `point_index · 6 + side`: the vertex.
+    /// Per (side, lattice point), `vertex_slot`: `(stamp, vertex index)`.
     vertex_slot: Vec<(u32, u32)>,
     /// Per lattice column (x, z): `(stamp, unit direction)`.
     column_direction: Vec<(u32, DVec3)>,
@@ -493,7 +493,7 @@ impl ChunkMesher {
                         for t in (start + 1).max(0)..end.min(i64::from(LAST) + 1) {
                             let p = point(t);
                             let index = point_index(p);
-                            if (0..6).any(|s| self.vertex_slot[index * 6 + s].0 == self.stamp) {
+                            if (0..6).any(|s| self.vertex_slot[vertex_slot(index, s)].0 == self.stamp) {
                                 chain.push(p);
                             }
                         }
@@ -702,7 +702,7 @@ impl ChunkMesher {
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
     ) -> u32 {
-        let slot = point_index(local) * 6 + side as usize;
+        let slot = vertex_slot(point_index(local), side as usize);
         if self.vertex_slot[slot].0 == self.stamp {
             return self.vertex_slot[slot].1;
         }
@@ -1246,6 +1246,13 @@ fn local_corners(face: &OrientedBlockFace, quad: &UnorientedQuad) -> [[i32; 3]; 
 /// The unit step along `axis`.
 fn unit_along(axis: usize) -> [i32; 3] {
     [i32::from(axis == 0), i32::from(axis == 1), i32::from(axis == 2)]
+}
+
+/// The index in `ChunkMesher::vertex_slot` of the vertex at the lattice
+/// point with index `point` on a face looking towards side `side`: side
+/// by side, so that a side's quads, meshed together, read one region.
+fn vertex_slot(point: usize, side: usize) -> usize {
+    side * POINTS * POINTS * POINTS + point
 }
 
 fn point_index(local: [i32; 3]) -> usize {
