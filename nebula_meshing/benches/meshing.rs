@@ -5,7 +5,8 @@
 //! worst case of random 50 % voxels):
 //! - `greedy_quads`: block-mesh's greedy meshing alone (the baseline);
 //! - `binary_greedy_quads`: block-mesh-bgm's bitmask greedy meshing alone,
-//!   the same faces as block-mesh (what `surface` runs on);
+//!   the same faces as block-mesh (`surface` makes the same quads from the
+//!   chunk's solid rows: `greedy.rs`);
 //! - `bgm_fast_mesh`: the binary-greedy-meshing crate's `fast_mesh` alone,
 //!   with its opacity masks built outside the timing (it expects a game to
 //!   keep them up to date), and `bgm_mask_and_fast_mesh`: with its voxels
@@ -18,7 +19,9 @@
 //!   and a skirt there) from the already generated voxels.
 //!
 //! Each id names its output: quads for block-mesh, triangles for ours, with
-//! `visible_block_faces` (no merging) for scale. Then 64 chunks sequentially
+//! `visible_block_faces` (no merging) for scale; the first lines printed
+//! give each case's vertex count and a fingerprint of its surface mesh
+//! (what a change meant to keep the meshes is checked by). Then 64 chunks sequentially
 //! vs. `mesh_chunks` on rayon. Run: `cargo bench -p nebula_meshing`.
 
 use std::collections::HashMap;
