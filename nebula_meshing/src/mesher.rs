@@ -124,6 +124,9 @@ pub struct ChunkMesher {
     /// The chunk's [`ChunkVoxels::sky_floors`]: where each padded column
     /// is open to the sky.
     sky_floors: [u8; PADDED_COLUMNS],
+    /// The chunk being meshed has no plugs and no dark air
+    /// ([`ChunkVoxels::has_dark_air_from`]): every vertex is lit.
+    all_lit: bool,
     /// Per padded voxel (a bit each): dark air that
     /// [`ChunkMesher::plug_dark_air`] filled with rock.
     plugs: Vec<u64>,
@@ -169,6 +172,7 @@ impl ChunkMesher {
             stitch_coarser: [None; 4],
             stitch_parts: StitchParts::ALL,
             sky_floors: [0; PADDED_COLUMNS],
+            all_lit: false,
             plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             plugs_for: None,
             plug_margin: PLUG_MARGIN,
@@ -333,6 +337,9 @@ impl ChunkMesher {
             self.plugs_for = None;
             self.sky_floors = voxels.sky_floors_from(&self.greedy.rows);
         }
+        // Open ground (most chunks): every air voxel sees the sky, so every
+        // vertex is lit and no quad is split for light.
+        self.all_lit = self.plugs_for.is_none() && !voxels.has_dark_air_from(&self.greedy.rows);
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
         for (group, face) in groups.iter_mut().zip(faces) {
             let axes = FaceAxes::of(face);
@@ -361,9 +368,11 @@ impl ChunkMesher {
             if covers_any {
                 self.covered.fill(0);
             }
-            let is_plug = |padded| self.is_plug(padded);
-            let plugs = self.plugs_for.is_some().then_some(&is_plug as &dyn Fn([u32; 3]) -> bool);
-            split_by_sky(&axes, group, voxels, &self.sky_floors, plugs);
+            if !self.all_lit {
+                let is_plug = |padded| self.is_plug(padded);
+                let plugs = self.plugs_for.is_some().then_some(&is_plug as &dyn Fn([u32; 3]) -> bool);
+                split_by_sky(&axes, group, voxels, &self.sky_floors, plugs);
+            }
         }
         self.push_mirror_faces(voxels, &mut groups);
         self.corners.fill(0);
@@ -712,7 +721,12 @@ impl ChunkMesher {
         let even = [local[0] & !1, local[1] & !1, local[2] & !1];
         let morph = self.world_position(key, layout, even);
         let normal = self.normal(key, layout, local, side, world);
-        let sky_light = self.sky_light(voxels, local, side);
+        let sky_light = if self.all_lit {
+            debug_assert_eq!(self.sky_light(voxels, local, side), 255);
+            255
+        } else {
+            self.sky_light(voxels, local, side)
+        };
         let index =
             mesh.push_vertex(world, morph, normal, (material, sky_light), 0, VertexSource::Surface { local, side });
         self.vertex_slot[slot] = (self.stamp, index);

@@ -127,20 +127,11 @@ impl ChunkVoxels {
             // A column covered above the chunk is dark to its top; without
             // a record, one whose top voxel is solid (which the scan below
             // gives the top floor too).
-            let mut unfound = every_column;
-            if let Some(words) = &self.covered_above {
-                // The slab's 34 bits of the record, which may straddle two
-                // words.
-                let first = size * z;
-                let (word, shift) = (first / 64, first % 64);
-                let low = words[word] >> shift;
-                let high = if shift + size > 64 { words[word + 1] << (64 - shift) } else { 0 };
-                let mut covered = (low | high) & every_column;
-                unfound &= !covered;
-                while covered != 0 {
-                    floors[covered.trailing_zeros() as usize] = size as u8;
-                    covered &= covered - 1;
-                }
+            let mut covered = self.covered_in_slab(z);
+            let mut unfound = every_column & !covered;
+            while covered != 0 {
+                floors[covered.trailing_zeros() as usize] = size as u8;
+                covered &= covered - 1;
             }
             for (y, &row) in slab.iter().enumerate().rev() {
                 if unfound == 0 {
@@ -155,6 +146,40 @@ impl ChunkVoxels {
             }
         }
         floors
+    }
+
+    /// Whether some air voxel of the padded chunk lies under its column's
+    /// sky floor ([`ChunkVoxels::sky_floors`]): a cave's, an overhang's or
+    /// a covered column's. Without any, every air voxel is open to the
+    /// sky. From the chunk's [`ChunkVoxels::solid_rows`].
+    #[must_use]
+    pub fn has_dark_air_from(&self, rows: &[u64; PADDED_ROWS]) -> bool {
+        let size = PADDED_CHUNK_SIZE as usize;
+        let every_column = (1u64 << size) - 1;
+        let mut dark = 0;
+        for (z, slab) in rows.chunks_exact(size).enumerate() {
+            // Columns with something solid above the row (or covered over
+            // the chunk): their air in the row is under the floor.
+            let mut above = self.covered_in_slab(z);
+            for &row in slab.iter().rev() {
+                dark |= !row & above & every_column;
+                above |= row;
+            }
+        }
+        dark != 0
+    }
+
+    /// The columns of slab `z` (bit `x`) recorded as covered above the
+    /// chunk ([`ChunkVoxels::set_covered_above`]; none without a record).
+    fn covered_in_slab(&self, z: usize) -> u64 {
+        let Some(words) = &self.covered_above else { return 0 };
+        // The slab's 34 bits of the record, which may straddle two words.
+        let size = PADDED_CHUNK_SIZE as usize;
+        let first = size * z;
+        let (word, shift) = (first / 64, first % 64);
+        let low = words[word] >> shift;
+        let high = if shift + size > 64 { words[word + 1] << (64 - shift) } else { 0 };
+        (low | high) & ((1 << size) - 1)
     }
 
     /// Writes, for each padded row (`y + 34·z`), which of its voxels are

@@ -1716,14 +1716,20 @@ impl VoxelSource for ProceduralPlanet {
         let span = self.layout.voxel_span(key.lod) as f64;
         let size = PADDED_CHUNK_SIZE as usize;
         // Row by row along x, as the voxels are stored: the same arithmetic
-        // as `classify`, one corner centre per row.
+        // as `classify`, one corner centre per row. Where no tunnel passes
+        // over any of the chunk's columns (most chunks), without asking
+        // each voxel about caves: the rows vectorise.
+        let caves = heights.iter().any(|column| column.caves.near);
         for z in 0..size {
             let columns = &heights[z * size..(z + 1) * size];
             for y in 0..size {
                 let centre = self.layout.sample_layer(base_h + y as i64, key.lod);
                 let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
-                for (voxel, column) in voxels[start..start + size].iter_mut().zip(columns) {
-                    *voxel = column.voxel(centre, span);
+                let row = voxels[start..start + size].iter_mut().zip(columns);
+                if caves {
+                    row.for_each(|(voxel, column)| *voxel = column.voxel(centre, span));
+                } else {
+                    row.for_each(|(voxel, column)| *voxel = classify_depth(*column, column.height - centre, span));
                 }
             }
         }

@@ -773,7 +773,40 @@ proptest! {
                 .fold(0u64, |bits, x| bits | 1 << x);
             prop_assert_eq!(row, expected, "row y {} z {}", y, z);
         }
-        prop_assert_eq!(voxels.sky_floors().to_vec(), sky_floors_voxel_by_voxel(&voxels));
+        let floors = sky_floors_voxel_by_voxel(&voxels);
+        prop_assert_eq!(voxels.sky_floors().to_vec(), floors.clone());
+        let dark_air = (0..PADDED_CHUNK_SIZE).any(|z| (0..PADDED_CHUNK_SIZE).any(|x| {
+            let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]);
+            (0..floor).any(|y| !voxels.get([x, y, z]).unwrap().is_solid())
+        }));
+        prop_assert_eq!(voxels.has_dark_air_from(&rows), dark_air);
+    }
+
+    /// Ground with no cave, overhang or cover has no dark air; one air
+    /// voxel under a solid one, or a covered column, has.
+    #[test]
+    fn dark_air_is_air_under_a_floor(seed in any::<u64>(), x in 0u32..34, z in 0u32..34, y in 1u32..33) {
+        let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+        let mut state = seed | 1;
+        for (cz, cx) in (0..PADDED_CHUNK_SIZE).flat_map(|cz| (0..PADDED_CHUNK_SIZE).map(move |cx| (cz, cx))) {
+            let ground = 1 + (unit_random(&mut state) * 32.0) as u32;
+            for cy in 0..ground {
+                voxels.set([cx, cy, cz], Voxel::STONE);
+            }
+        }
+        let mut rows = [0; PADDED_ROWS];
+        voxels.solid_rows(&mut rows);
+        prop_assert!(!voxels.has_dark_air_from(&rows));
+        let mut overhang = voxels.clone();
+        overhang.set([x, y, z], Voxel::AIR);
+        overhang.set([x, y + 1, z], Voxel::STONE);
+        overhang.solid_rows(&mut rows);
+        prop_assert!(overhang.has_dark_air_from(&rows));
+        let mut covered = voxels.clone();
+        covered.set_covered_above((x, z), true);
+        covered.set([x, PADDED_CHUNK_SIZE - 1, z], Voxel::AIR);
+        covered.solid_rows(&mut rows);
+        prop_assert!(covered.has_dark_air_from(&rows));
     }
 
     /// Every face-adjacent padding voxel, across chunk and cube-face edges,
