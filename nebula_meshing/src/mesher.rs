@@ -101,7 +101,7 @@ pub struct ChunkMesher {
     column_direction: Vec<(u32, DVec3)>,
     /// The chunk's columns on the cube and their coordinates' warps.
     column_warps: ColumnWarps,
-    /// Per lattice point (`point_index`): its world position.
+    /// Per lattice point (`point_index`): `(stamp, world position)`.
     point_world: Vec<(u32, DVec3)>,
     /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
     /// towards growing coordinate)`.
