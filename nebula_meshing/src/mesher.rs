@@ -150,7 +150,8 @@ impl Default for ChunkMesher {
 }
 
 impl ChunkMesher {
-    /// Scratch memory for one thread (about 2.5 MB).
+    /// Scratch memory for one thread (about 3 MB: vertex slots and
+    /// positions by lattice point).
     #[must_use]
     pub fn new() -> Self {
         Self {
