@@ -5,8 +5,9 @@
 //! worst case of random 50 % voxels):
 //! - `greedy_quads`: block-mesh's greedy meshing alone (the baseline);
 //! - `binary_greedy_quads`: block-mesh-bgm's bitmask greedy meshing alone,
-//!   the same faces as block-mesh (`surface` makes the same quads from the
-//!   chunk's solid rows: `greedy.rs`);
+//!   the same faces as block-mesh, and `greedy_quads_from_rows`: the same
+//!   quads from the chunk's solid rows ([`GreedyQuads`], what `surface`
+//!   runs);
 //! - `bgm_fast_mesh`: the binary-greedy-meshing crate's `fast_mesh` alone,
 //!   with its opacity masks built outside the timing (it expects a game to
 //!   keep them up to date), and `bgm_mask_and_fast_mesh`: with its voxels
@@ -30,8 +31,8 @@ use binary_greedy_meshing as bgm;
 use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, UnitQuadBuffer, greedy_quads, visible_block_faces};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nebula_meshing::{
-    ChunkLodContext, ChunkMeshBuffer, ChunkMesher, FaceDirection, MeshOptions, NeighborLodRelation, mesh_chunk,
-    mesh_chunks,
+    ChunkLodContext, ChunkMeshBuffer, ChunkMesher, FaceDirection, GreedyQuads, MeshOptions, NeighborLodRelation,
+    mesh_chunk, mesh_chunks,
 };
 use nebula_voxel::{
     ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, CubeFace, PADDED_CHUNK_VOLUME, PaddedChunkShape, PlanetSettings,
@@ -192,6 +193,14 @@ fn meshing(c: &mut Criterion) {
         group.bench_function(
             BenchmarkId::new(format!("{name}/binary_greedy_quads"), format!("quads={binary_quads}")),
             |b| b.iter(|| binary_greedy(&mut binary)),
+        );
+        // The same quads from the chunk's solid rows: what `surface` runs.
+        let mut ours = GreedyQuads::new();
+        group.bench_function(
+            BenchmarkId::new(format!("{name}/greedy_quads_from_rows"), format!("quads={binary_quads}")),
+            |b| {
+                b.iter(|| ours.mesh(voxels));
+            },
         );
         let (bgm_voxels, bgm_opaque) = bgm_input(voxels);
         let bgm_transparent = vec![0u64; bgm_opaque.len()];

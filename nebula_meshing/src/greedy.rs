@@ -30,8 +30,26 @@ const INTERIOR: u64 = (1 << N) - 1;
 /// Strides of the padded layout (x fastest, then y, then z).
 const STRIDE: [usize; 3] = [1, P, P * P];
 
-/// Reusable scratch memory for [`GreedyQuads::mesh`].
-pub(crate) struct GreedyQuads {
+/// Greedy quads of a padded chunk (the module docs above): the quads
+/// block-mesh-bgm's `binary_greedy_quads` gives for the chunk with
+/// block-mesh's `RIGHT_HANDED_Y_UP_CONFIG`, from the chunk's solid rows.
+/// What [`ChunkMesher`](crate::ChunkMesher) starts from; for a game that
+/// wants the quads alone. Keeps its scratch memory (about 40 KB) from one
+/// chunk to the next.
+///
+/// ```
+/// use nebula_meshing::GreedyQuads;
+/// use nebula_voxel::{ChunkKey, ChunkVoxels, CubeFace, Voxel};
+///
+/// let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+/// // A 2 × 1 × 1 bar of stone: six quads, the long sides merged.
+/// voxels.set([5, 6, 7], Voxel::STONE);
+/// voxels.set([6, 6, 7], Voxel::STONE);
+/// let mut greedy = GreedyQuads::new();
+/// greedy.mesh(&voxels);
+/// assert_eq!(greedy.quads().num_quads(), 6);
+/// ```
+pub struct GreedyQuads {
     /// The quads, grouped as block-mesh's `RIGHT_HANDED_Y_UP_CONFIG`
     /// orders its faces: −x, −y, −z, +x, +y, +z.
     pub(crate) quads: QuadBuffer,
@@ -46,6 +64,22 @@ pub(crate) struct GreedyQuads {
     faces_opposite: Box<[[u64; N]; N]>,
     /// Per bit of the row being merged: rows its run has carried on for.
     carry: [u8; N],
+}
+
+impl Default for GreedyQuads {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl GreedyQuads {
+    /// The last chunk's quads, grouped by face as block-mesh's
+    /// `RIGHT_HANDED_Y_UP_CONFIG` orders its faces (−x, −y, −z, +x, +y,
+    /// +z), in padded coordinates.
+    #[must_use]
+    pub fn quads(&self) -> &QuadBuffer {
+        &self.quads
+    }
 }
 
 /// How one normal axis is scanned (block-mesh-bgm's plan, so that the
@@ -80,7 +114,9 @@ impl Plan {
 }
 
 impl GreedyQuads {
-    pub(crate) fn new() -> Self {
+    /// Empty scratch memory.
+    #[must_use]
+    pub fn new() -> Self {
         Self {
             quads: QuadBuffer::new(),
             rows: Box::new([0; PADDED_ROWS]),
@@ -90,9 +126,9 @@ impl GreedyQuads {
         }
     }
 
-    /// Meshes `voxels` into [`GreedyQuads::quads`] (its solid rows left in
-    /// [`GreedyQuads::rows`]).
-    pub(crate) fn mesh(&mut self, voxels: &ChunkVoxels) {
+    /// Meshes `voxels` (their padding read, not meshed) into
+    /// [`GreedyQuads::quads`], replacing the last chunk's.
+    pub fn mesh(&mut self, voxels: &ChunkVoxels) {
         self.quads.reset();
         voxels.solid_rows(&mut self.rows);
         let slice = voxels.as_slice();

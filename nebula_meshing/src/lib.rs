@@ -5,9 +5,9 @@
 //!
 //! 1. voxels with a one-voxel padding read across chunk and cube-face edges;
 //! 2. greedy quads on the padded 34³ array (material-aware) from bitmasks
-//!    of its solid voxels: block-mesh-bgm's quads (tested equal), made from
-//!    our voxel rows; block-mesh's `greedy_quads` is the reference for the
-//!    faces they cover;
+//!    of its solid voxels ([`GreedyQuads`]): block-mesh-bgm's quads (tested
+//!    equal), made from our voxel rows; block-mesh's `greedy_quads` is the
+//!    reference for the faces they cover;
 //! 3. T-junction-free triangulation, decided in integer lattice coordinates
 //!    (see [`ChunkMesher`]): every vertex on a quad's edge joins its outline,
 //!    and on chunk boundary planes a canonical set of lattice points does
@@ -67,6 +67,7 @@ mod seams;
 pub mod stitch;
 
 pub use error::MeshError;
+pub use greedy::GreedyQuads;
 pub use mesh::{ChunkMesh, MeshVertex, OutlineEdge};
 pub use mesher::ChunkMesher;
 pub use nebula_lod::{ChunkLodContext, NeighborLodRelation};

@@ -1,7 +1,7 @@
 //! Greedy quads → T-junction-free triangles on the sphere.
 //!
 //! ```text
-//!   Bitmask greedy meshing (`crate::greedy`: block-mesh-bgm's quads, the
+//!   Bitmask greedy meshing (`GreedyQuads`: block-mesh-bgm's quads, the
 //!   faces block-mesh's `greedy_quads` covers) gives rectangles (greedy
 //!   quads) in lattice space. On the sphere each is curved, so a vertex of
 //!   a neighbouring quad that lies on a rectangle's edge would float off

@@ -459,7 +459,7 @@ proptest! {
         prop_assert_eq!(mesh.indices(), again.indices());
     }
 
-    /// The bitmask greedy quads (`crate::greedy`) cover exactly the faces
+    /// The bitmask greedy quads ([`GreedyQuads`]) cover exactly the faces
     /// block-mesh's greedy meshing covers, each once, with the material of
     /// the voxel it belongs to: block-mesh stays the reference.
     #[test]
@@ -489,7 +489,7 @@ proptest! {
         };
         let mut reference = GreedyQuadsBuffer::new(PADDED_CHUNK_VOLUME);
         greedy_quads(voxels.as_slice(), &PaddedChunkShape {}, [0; 3], [33; 3], faces, &mut reference);
-        let mut binary = greedy::GreedyQuads::new();
+        let mut binary = GreedyQuads::new();
         binary.mesh(&voxels);
         let (expected, got) = (covered(&reference.quads), covered(&binary.quads));
         prop_assert!(got.values().all(|&n| n == 1), "a face covered twice");
