@@ -748,6 +748,60 @@ fn parallel_meshing_matches_sequential() {
     }
 }
 
+/// The small planet, read through a `fill_chunk` that first meshes chunks
+/// of a flat planet with [`mesh_chunks`] (as a source building something of
+/// its own on rayon might): meshing on a thread that is meshing already.
+struct MeshingSource;
+
+impl VoxelSource for MeshingSource {
+    fn layout(&self) -> &ChunkLayout {
+        planet().layout()
+    }
+
+    fn voxel(&self, at: VoxelCoord) -> Result<Voxel, VoxelError> {
+        planet().voxel(at)
+    }
+
+    fn fill_chunk(&self, key: ChunkKey, out: &mut ChunkVoxels) -> Result<(), VoxelError> {
+        let jobs: Vec<(ChunkKey, ChunkLodContext)> = (0..4)
+            .map(|x| (ChunkKey { face: CubeFace::PosY, lod: 0, x, y: 0, layer: 2 }, ChunkLodContext::uniform(0)))
+            .collect();
+        for result in mesh_chunks(&flat(80), &jobs, MeshOptions::default()) {
+            assert!(result.expect("the flat chunks mesh").triangle_count() > 0);
+        }
+        planet().fill_chunk(key, out)
+    }
+
+    fn surface_bounds(&self, column: ChunkColumn) -> Result<SurfaceBounds, VoxelError> {
+        planet().surface_bounds(column)
+    }
+
+    fn geometric_error(&self, lod: u8) -> f64 {
+        planet().geometric_error(lod)
+    }
+}
+
+/// `mesh_chunks` keeps a buffer per thread; a source that meshes inside
+/// `fill_chunk` makes a thread mesh while its buffer is in use, and gets
+/// the same meshes (a fresh buffer for the inner chunks), not a panic.
+#[test]
+fn meshing_inside_a_source_while_meshing_gets_the_same_meshes() {
+    let jobs: Vec<(ChunkKey, ChunkLodContext)> = (0..4)
+        .flat_map(|n| {
+            let column = ChunkColumn { face: CubeFace::PosX, lod: 1, x: n, y: 3 };
+            let layers = planet().surface_chunk_layers(column).unwrap();
+            layers.map(move |layer| (column.chunk(layer), ChunkLodContext::uniform(1)))
+        })
+        .collect();
+    let nested = mesh_chunks(&MeshingSource, &jobs, MeshOptions::default());
+    let direct = mesh_chunks(planet(), &jobs, MeshOptions::default());
+    for (nested, direct) in nested.into_iter().zip(direct) {
+        let (nested, direct) = (nested.unwrap(), direct.unwrap());
+        assert_eq!(nested.vertices(), direct.vertices());
+        assert_eq!(nested.indices(), direct.indices());
+    }
+}
+
 /// The top of the surface of `meshes` over vertical lines of the lattice
 /// (finest-lattice units, face-local `(i, j)`), decided in lattice space, so
 /// no sphere sag enters: each surface triangle is mapped to its global
