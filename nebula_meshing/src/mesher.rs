@@ -125,7 +125,8 @@ pub struct ChunkMesher {
     /// is open to the sky.
     sky_floors: [u8; PADDED_COLUMNS],
     /// The chunk being meshed has no plugs and no dark air
-    /// ([`ChunkVoxels::has_dark_air_from`]): every vertex is lit.
+    /// ([`ChunkVoxels::dark_air_columns_from`]): every face's vertices are
+    /// lit.
     all_lit: bool,
     /// Per padded voxel (a bit each): dark air that
     /// [`ChunkMesher::plug_dark_air`] filled with rock.
@@ -135,6 +136,17 @@ pub struct ChunkMesher {
     /// [`PLUG_MARGIN`], except where a test plugs up to the boundary to see
     /// the seams open.
     pub(crate) plug_margin: u32,
+}
+
+/// What a vertex is made for: a face looking towards `side` of voxel
+/// material `material`; `on_face` when the point is on the outline of
+/// such a face of the chunk (so a cell in front of it is air), not only
+/// on a stitch's zip.
+#[derive(Clone, Copy, Debug)]
+struct VertexKind {
+    side: FaceDirection,
+    material: u8,
+    on_face: bool,
 }
 
 /// Voxels left open along every side of a chunk by
@@ -340,7 +352,8 @@ impl ChunkMesher {
         }
         // Open ground (most chunks): every air voxel sees the sky, so every
         // vertex is lit and no quad is split for light.
-        self.all_lit = self.plugs_for.is_none() && !voxels.has_dark_air_from(&self.greedy.rows);
+        self.all_lit = self.plugs_for.is_none()
+            && voxels.dark_air_columns_from(&self.greedy.rows).iter().all(|&columns| columns == 0);
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
         for (group, face) in groups.iter_mut().zip(faces) {
             let axes = FaceAxes::of(face);
@@ -571,7 +584,8 @@ impl ChunkMesher {
         mesh: &mut ChunkMesh,
     ) -> Result<u32, MeshError> {
         if local.iter().all(|&c| (0..=LAST).contains(&c)) {
-            return Ok(self.vertex(local, side, material, voxels, layout, mesh));
+            let kind = VertexKind { side, material, on_face: false };
+            return Ok(self.vertex(local, kind, voxels, layout, mesh));
         }
         let key = mesh.key;
         let sphere = layout.sphere();
@@ -614,7 +628,7 @@ impl ChunkMesher {
         index_b.clear();
         for (chain, indices) in [(&chain_a, &mut index_a), (&chain_b, &mut index_b)] {
             for &point in chain.iter() {
-                indices.push(self.vertex(point, side, material, voxels, layout, mesh));
+                indices.push(self.vertex(point, VertexKind { side, material, on_face: true }, voxels, layout, mesh));
             }
         }
         // Lattice space (x = u, y = radial, z = v) is left-handed in the
@@ -701,17 +715,17 @@ impl ChunkMesher {
         }
     }
 
-    /// The vertex for lattice point `local` on a face looking towards
-    /// `side`, made on first use.
+    /// The vertex for lattice point `local` on a face of `kind`, made on
+    /// first use.
     fn vertex(
         &mut self,
         local: [i32; 3],
-        side: FaceDirection,
-        material: u8,
+        kind: VertexKind,
         voxels: &ChunkVoxels,
         layout: &ChunkLayout,
         mesh: &mut ChunkMesh,
     ) -> u32 {
+        let VertexKind { side, material, on_face } = kind;
         let slot = vertex_slot(point_index(local), side as usize);
         if self.vertex_slot[slot].0 == self.stamp {
             return self.vertex_slot[slot].1;
@@ -722,7 +736,10 @@ impl ChunkMesher {
         let even = [local[0] & !1, local[1] & !1, local[2] & !1];
         let morph = self.world_position(key, layout, even);
         let normal = self.normal(key, layout, local, side, world);
-        let sky_light = if self.all_lit {
+        // A face's cell in front is air, and in a chunk without dark air
+        // or plugs every air cell is open to the sky: lit, without reading
+        // the cells (a zip's point may have none of them air).
+        let sky_light = if on_face && self.all_lit {
             debug_assert_eq!(self.sky_light(voxels, local, side), 255);
             255
         } else {

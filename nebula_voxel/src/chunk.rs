@@ -148,25 +148,26 @@ impl ChunkVoxels {
         floors
     }
 
-    /// Whether some air voxel of the padded chunk lies under its column's
-    /// sky floor ([`ChunkVoxels::sky_floors`]): a cave's, an overhang's or
-    /// a covered column's. Without any, every air voxel is open to the
-    /// sky. From the chunk's [`ChunkVoxels::solid_rows`].
+    /// Per slab `z`, the padded columns (bit `x`) with an air voxel under
+    /// the column's sky floor ([`ChunkVoxels::sky_floors`]): a cave's, an
+    /// overhang's or a covered column's. In the other columns every air
+    /// voxel is open to the sky. From the chunk's
+    /// [`ChunkVoxels::solid_rows`].
     #[must_use]
-    pub fn has_dark_air_from(&self, rows: &[u64; PADDED_ROWS]) -> bool {
+    pub fn dark_air_columns_from(&self, rows: &[u64; PADDED_ROWS]) -> [u64; PADDED_CHUNK_SIZE as usize] {
         let size = PADDED_CHUNK_SIZE as usize;
         let every_column = (1u64 << size) - 1;
-        let mut dark = 0;
+        let mut dark = [0; PADDED_CHUNK_SIZE as usize];
         for (z, slab) in rows.chunks_exact(size).enumerate() {
             // Columns with something solid above the row (or covered over
             // the chunk): their air in the row is under the floor.
             let mut above = self.covered_in_slab(z);
             for &row in slab.iter().rev() {
-                dark |= !row & above & every_column;
+                dark[z] |= !row & above & every_column;
                 above |= row;
             }
         }
-        dark != 0
+        dark
     }
 
     /// The columns of slab `z` (bit `x`) recorded as covered above the
