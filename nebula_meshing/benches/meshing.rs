@@ -17,7 +17,8 @@
 //! - `copy_and_plug_dark_air` against `copy`: what plugging a chunk's dark
 //!   cave air costs (`ChunkMesher::plug_dark_air`, streaming from LOD 1);
 //! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
-//!   and a skirt there) from the already generated voxels.
+//!   and a skirt there) from the already generated voxels, and `streaming`:
+//!   with `MeshOptions::STREAMING` (draw-time skirts on every side).
 //!
 //! Each id names its output: quads for block-mesh, triangles for ours, with
 //! `visible_block_faces` (no merging) for scale; the first lines printed
@@ -31,8 +32,8 @@ use binary_greedy_meshing as bgm;
 use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, UnitQuadBuffer, greedy_quads, visible_block_faces};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nebula_meshing::{
-    ChunkLodContext, ChunkMeshBuffer, ChunkMesher, FaceDirection, GreedyQuads, MeshOptions, NeighborLodRelation,
-    mesh_chunk, mesh_chunks,
+    ChunkLodContext, ChunkMesh, ChunkMeshBuffer, ChunkMesher, FaceDirection, GreedyQuads, MeshOptions,
+    NeighborLodRelation, mesh_chunk, mesh_chunks,
 };
 use nebula_voxel::{
     ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, CubeFace, PADDED_CHUNK_VOLUME, PaddedChunkShape, PlanetSettings,
@@ -132,6 +133,14 @@ fn bgm_input(voxels: &ChunkVoxels) -> (Vec<u16>, Vec<u64>) {
     (out, opaque)
 }
 
+/// A hash of a mesh's vertices and indices: what a change that should not
+/// alter the meshes is checked by.
+fn mesh_fingerprint(mesh: &ChunkMesh) -> u64 {
+    let mut hasher = std::hash::DefaultHasher::new();
+    std::hash::Hash::hash(&format!("{:?}{:?}", mesh.vertices(), mesh.indices()), &mut hasher);
+    std::hash::Hasher::finish(&hasher)
+}
+
 fn noisy_chunk(key: ChunkKey) -> ChunkVoxels {
     let mut state = 0x2545_F491_4F6C_DD1D_u64;
     let voxels = (0..PADDED_CHUNK_VOLUME)
@@ -164,11 +173,7 @@ fn meshing(c: &mut Criterion) {
         let surface = mesher.mesh(voxels, planet.layout()).expect("valid chunk");
         let surface_tris = surface.triangle_count();
         // What a change that should not alter the meshes can be checked by.
-        let fingerprint = {
-            let mut hasher = std::hash::DefaultHasher::new();
-            std::hash::Hash::hash(&format!("{:?}{:?}", surface.vertices(), surface.indices()), &mut hasher);
-            std::hash::Hasher::finish(&hasher)
-        };
+        let fingerprint = mesh_fingerprint(&surface);
         let mut context = ChunkLodContext::uniform(key.lod);
         context.set(FaceDirection::PosX, NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 });
         let mut buffer = ChunkMeshBuffer::new();
@@ -249,6 +254,15 @@ fn meshing(c: &mut Criterion) {
         let tris = full.triangle_count();
         group.bench_function(BenchmarkId::new(format!("{name}/pipeline"), format!("tris={tris}")), |b| {
             b.iter(|| mesh_chunk(&source, key, &context, MeshOptions::default(), &mut buffer).expect("valid chunk"));
+        });
+        // What the streamer runs (draw-time skirts on every side, dark air
+        // plugged from LOD 1), generation aside.
+        let uniform = ChunkLodContext::uniform(key.lod);
+        let streamed = mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk");
+        let tris = streamed.triangle_count();
+        eprintln!("{name}: streamed mesh {:016x}", mesh_fingerprint(&streamed));
+        group.bench_function(BenchmarkId::new(format!("{name}/streaming"), format!("tris={tris}")), |b| {
+            b.iter(|| mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk"));
         });
     }
     group.finish();

@@ -361,33 +361,49 @@ impl ChunkMesh {
     pub(crate) fn outline_edges(&self, side: FaceDirection) -> Vec<(u32, u32)> {
         let plane = side_plane(side);
         let axis = side.axis();
-        // Undirected lattice edge → (triangles using it, first directed edge).
-        let mut uses: HashMap<LatticeEdge, (u32, (u32, u32))> = HashMap::new();
+        // Which vertices lie on the plane, looked up once each: most
+        // triangles have at most one there and no edge to count.
+        let on_plane: Vec<bool> =
+            (0..self.vertices.len()).map(|i| self.local(i).is_some_and(|l| l[axis] == plane)).collect();
+        // Every surface edge in the plane as (undirected lattice edge,
+        // directed edge), sorted, so that an edge one triangle alone uses
+        // is a run of one (a hash map of counts was a fifth of meshing a
+        // chunk for streaming, four sides a chunk).
+        let mut found: Vec<(LatticeEdge, (u32, u32))> = Vec::new();
         for triangle in self.indices[..self.surface_index_count].chunks_exact(3) {
+            let on = |k: usize| on_plane[triangle[k] as usize];
+            if u8::from(on(0)) + u8::from(on(1)) + u8::from(on(2)) < 2 {
+                continue;
+            }
+            let locals =
+                [self.local(triangle[0] as usize), self.local(triangle[1] as usize), self.local(triangle[2] as usize)];
             // A stitch's zip (three lattice points on one line, `crate::stitch`)
             // covers no surface: its edges are not where the surface ends.
-            if let [Some(p), Some(q), Some(r)] = [0, 1, 2].map(|k| self.local(triangle[k] as usize))
+            if let [Some(p), Some(q), Some(r)] = locals
                 && on_one_line(p, q, r)
             {
                 continue;
             }
             for k in 0..3 {
-                let (a, b) = (triangle[k], triangle[(k + 1) % 3]);
-                let (Some(la), Some(lb)) = (self.local(a as usize), self.local(b as usize)) else { continue };
-                if la[axis] != plane || lb[axis] != plane {
+                let next = (k + 1) % 3;
+                // On the plane, so surface vertices with lattice points.
+                let (Some(la), Some(lb)) = (locals[k], locals[next]) else { continue };
+                if !on(k) || !on(next) {
                     continue;
                 }
                 let key = if la < lb { (la, lb) } else { (lb, la) };
-                uses.entry(key).or_insert((0, (a, b))).0 += 1;
+                found.push((key, (triangle[k], triangle[next])));
             }
         }
-        let mut edges: Vec<_> = uses
-            .into_iter()
-            .filter(|&((la, lb), (count, _))| count == 1 && !(la[0] == lb[0] && la[2] == lb[2]))
-            .map(|(key, (_, edge))| (key, edge))
-            .collect();
-        edges.sort_unstable_by_key(|&(key, _)| key);
-        edges.into_iter().map(|(_, edge)| edge).collect()
+        found.sort_unstable_by_key(|&(key, _)| key);
+        let mut edges = Vec::new();
+        for run in found.chunk_by(|a, b| a.0 == b.0) {
+            let ((la, lb), edge) = run[0];
+            if run.len() == 1 && !(la[0] == lb[0] && la[2] == lb[2]) {
+                edges.push(edge);
+            }
+        }
+        edges
     }
 
     /// The outline on `side`: the surface edges on the chunk's boundary
@@ -499,7 +515,7 @@ type LatticeEdge = ([i32; 3], [i32; 3]);
 /// Whether three lattice points lie on one line: a triangle of them covers
 /// nothing (a stitch's zip, `crate::stitch`).
 pub(crate) fn on_one_line(p: [i32; 3], q: [i32; 3], r: [i32; 3]) -> bool {
-    let (u, v) = ([0, 1, 2].map(|k| q[k] - p[k]), [0, 1, 2].map(|k| r[k] - p[k]));
+    let (u, v) = ([q[0] - p[0], q[1] - p[1], q[2] - p[2]], [r[0] - p[0], r[1] - p[1], r[2] - p[2]]);
     u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0]
 }
 

@@ -1,7 +1,7 @@
 //! Closing seams between chunks of different LOD: edge constraining and
 //! radial skirts (seam spec `003`, seeds `000` and `002`).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use nebula_math::{DVec3, FaceDirection, Vec3};
 use nebula_voxel::{CHUNK_SIZE, VoxelSource};
@@ -107,7 +107,7 @@ pub fn generate_skirt(
     let center = mesh.origin + planet_center.as_dvec3();
     let depth = f64::from(skirt_depth);
     mesh.skirt_depths[crate::side_index(edge)] = skirt_depth;
-    let mut lower: HashMap<u32, u32> = HashMap::new();
+    let mut lower: FxHashMap<u32, u32> = FxHashMap::default();
     let mut bottom_of = |mesh: &mut ChunkMesh, top: u32| -> u32 {
         *lower.entry(top).or_insert_with(|| {
             let t = top as usize;
