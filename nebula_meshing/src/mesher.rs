@@ -204,9 +204,16 @@ impl ChunkMesher {
     /// were filled.
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
+        self.plugs_for = None;
+        voxels.solid_rows(&mut self.greedy.rows);
+        // Most chunks have no dark air: nothing to fill, and the meshing
+        // then takes them as unplugged (open ground lit without looking).
+        if voxels.dark_air_columns_from(&self.greedy.rows).iter().all(|&columns| columns == 0) {
+            return 0;
+        }
         self.plugs_for = Some(voxels.key());
         // Plugs lie under the floors, so the meshing reuses them.
-        self.sky_floors = voxels.sky_floors();
+        self.sky_floors = voxels.sky_floors_from(&self.greedy.rows);
         let floors = self.sky_floors;
         let (low, high) = (1 + self.plug_margin, PADDED_CHUNK_SIZE - 1 - self.plug_margin);
         let slice = voxels.as_mut_slice();
@@ -258,6 +265,10 @@ impl ChunkMesher {
                     filled += 1;
                 }
             }
+        }
+        if filled == 0 {
+            // Dark air only in the margin: as unplugged.
+            self.plugs_for = None;
         }
         filled
     }
