@@ -102,7 +102,9 @@ pub struct ChunkMesher {
     /// The chunk's columns on the cube and their coordinates' warps.
     column_warps: ColumnWarps,
     /// Per lattice point (`point_index`): `(stamp, world position)`.
-    point_world: Vec<(u32, DVec3)>,
+    /// (An array, not a `DVec3`, so that the table starts as zeroed pages,
+    /// not 1.2 MB written.)
+    point_world: Vec<(u32, [f64; 3])>,
     /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
     /// towards growing coordinate)`.
     wall_normal: Vec<(u32, DVec3)>,
@@ -173,7 +175,7 @@ impl ChunkMesher {
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
             column_warps: ColumnWarps::default(),
-            point_world: vec![(0, DVec3::ZERO); POINTS * POINTS * POINTS],
+            point_world: vec![(0, [0.0; 3]); POINTS * POINTS * POINTS],
             wall_normal: vec![(0, DVec3::ZERO); 2 * POINTS],
             stamp: 0,
             chain_a: Vec::new(),
@@ -344,7 +346,7 @@ impl ChunkMesher {
             self.vertex_slot.fill((0, 0));
             self.column_direction.fill((0, DVec3::ZERO));
             self.column_warps = ColumnWarps::default();
-            self.point_world.fill((0, DVec3::ZERO));
+            self.point_world.fill((0, [0.0; 3]));
             self.wall_normal.fill((0, DVec3::ZERO));
             self.stamp = 1;
         }
@@ -828,7 +830,7 @@ impl ChunkMesher {
     fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> DVec3 {
         let index = point_index(local);
         if self.point_world[index].0 == self.stamp {
-            return self.point_world[index].1;
+            return DVec3::from_array(self.point_world[index].1);
         }
         let sphere = layout.sphere();
         let column = local[0] as usize * POINTS + local[2] as usize;
@@ -845,7 +847,7 @@ impl ChunkMesher {
         let span = layout.voxel_span(key.lod);
         let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
         let world = sphere.position_on_column(self.column_direction[column].1, layer as i32);
-        self.point_world[index] = (self.stamp, world);
+        self.point_world[index] = (self.stamp, world.to_array());
         world
     }
 
