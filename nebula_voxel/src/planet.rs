@@ -389,9 +389,15 @@ impl Column {
     /// height, less its caves.
     #[inline]
     fn voxel(&self, centre: f64, span: f64) -> Voxel {
-        let depth = self.height - centre;
-        let voxel = classify_depth(*self, depth, span);
-        if voxel != Voxel::AIR && self.caves.holds(depth, centre) { Voxel::AIR } else { voxel }
+        let voxel = self.ground_voxel(centre, span);
+        if voxel != Voxel::AIR && self.caves.holds(self.height - centre, centre) { Voxel::AIR } else { voxel }
+    }
+
+    /// [`Column::voxel`] without its caves: what it is where no tunnel
+    /// passes over the column (`caves.near` false).
+    #[inline]
+    fn ground_voxel(&self, centre: f64, span: f64) -> Voxel {
+        classify_depth(*self, self.height - centre, span)
     }
 
     /// Whether the voxel sampled at `centre` layers and everything above it
@@ -1729,7 +1735,7 @@ impl VoxelSource for ProceduralPlanet {
                 if caves {
                     row.for_each(|(voxel, column)| *voxel = column.voxel(centre, span));
                 } else {
-                    row.for_each(|(voxel, column)| *voxel = classify_depth(*column, column.height - centre, span));
+                    row.for_each(|(voxel, column)| *voxel = column.ground_voxel(centre, span));
                 }
             }
         }
