@@ -343,8 +343,12 @@ impl ChunkMesh {
 
     /// Indices of the surface vertices on `side`'s boundary plane.
     pub(crate) fn boundary_indices(&self, side: FaceDirection) -> Vec<usize> {
-        let plane = side_plane(side);
-        (0..self.vertices.len()).filter(|&i| self.local(i).is_some_and(|l| l[side.axis()] == plane)).collect()
+        (0..self.vertices.len()).filter(|&i| self.is_on_plane(i, side)).collect()
+    }
+
+    /// Whether vertex `index` is a surface vertex on `side`'s boundary plane.
+    fn is_on_plane(&self, index: usize, side: FaceDirection) -> bool {
+        self.local(index).is_some_and(|l| l[side.axis()] == side_plane(side))
     }
 
     /// All surface vertices on the chunk's boundary plane on `side`
@@ -359,12 +363,9 @@ impl ChunkMesh {
     /// a neighbour's surface (or a crack) begins. Radial edges are left out:
     /// a skirt hanging from one would have no area.
     pub(crate) fn outline_edges(&self, side: FaceDirection) -> Vec<(u32, u32)> {
-        let plane = side_plane(side);
-        let axis = side.axis();
         // Which vertices lie on the plane, looked up once each: most
         // triangles have at most one there and no edge to count.
-        let on_plane: Vec<bool> =
-            (0..self.vertices.len()).map(|i| self.local(i).is_some_and(|l| l[axis] == plane)).collect();
+        let on_plane: Vec<bool> = (0..self.vertices.len()).map(|i| self.is_on_plane(i, side)).collect();
         // Every surface edge in the plane as (undirected lattice edge,
         // directed edge), sorted, so that an edge one triangle alone uses
         // is a run of one (a hash map of counts was a fifth of meshing a
@@ -387,10 +388,7 @@ impl ChunkMesh {
             for k in 0..3 {
                 let next = (k + 1) % 3;
                 // On the plane, so surface vertices with lattice points.
-                let (Some(la), Some(lb)) = (locals[k], locals[next]) else { continue };
-                if !on(k) || !on(next) {
-                    continue;
-                }
+                let (true, true, Some(la), Some(lb)) = (on(k), on(next), locals[k], locals[next]) else { continue };
                 let key = if la < lb { (la, lb) } else { (lb, la) };
                 found.push((key, (triangle[k], triangle[next])));
             }

@@ -339,7 +339,8 @@ impl ChunkMesher {
         self.greedy.quads.num_quads()
     }
 
-    fn next_stamp(&mut self) -> u32 {
+    /// Starts a chunk under a new stamp (every stamped entry goes stale).
+    fn next_stamp(&mut self) {
         self.stamp = self.stamp.wrapping_add(1);
         if self.stamp == 0 {
             // Wrapped: forget every old stamp.
@@ -350,7 +351,6 @@ impl ChunkMesher {
             self.wall_normal.fill((0, DVec3::ZERO));
             self.stamp = 1;
         }
-        self.stamp
     }
 
     fn mesh_into(&mut self, voxels: &ChunkVoxels, layout: &ChunkLayout, mesh: &mut ChunkMesh) -> Result<(), MeshError> {
