@@ -819,10 +819,11 @@ impl ProceduralPlanet {
         directions: &[nebula_math::DVec3],
         resumed: [(usize, Vec<OctaveState>); 3],
         lod: u8,
+        caves_possible: bool,
     ) -> Vec<Column> {
         let span = self.layout.voxel_span(lod) as f64;
         // The caves first: a column under a tunnel needs its exact height.
-        let caves: Vec<ColumnCaves> = if self.caves.at_lod(lod) {
+        let caves: Vec<ColumnCaves> = if caves_possible && self.caves.at_lod(lod) {
             self.caves.columns(directions, span)
         } else {
             vec![ColumnCaves::NONE; directions.len()]
@@ -1367,7 +1368,17 @@ impl ProceduralPlanet {
         // The grids' octaves, face by face (a chunk at a face edge has
         // padding owned by its neighbours).
         let resumed = self.grid_states_by_face(&samples, span_columns);
-        for (n, computed) in missing.into_iter().zip(self.columns_at(&directions, resumed, column.lod)) {
+        // No cave where the column's relief (its chunk column and a voxel
+        // beyond: the padding) keeps every voxel under the caves' sea
+        // margin or out of every cave region (`column_relief`, which the
+        // LOD tree has mostly asked for already): the sea's chunks and
+        // cave-free land skip the caves' noise. Their voxels are the same:
+        // no cave air can lie there, and a column with no tunnel over it
+        // is made as any other (its `near` unset, it may also be lent to
+        // a finer column, whose relief lies within this one's).
+        let caves_possible = self.column_relief(column).is_ok_and(|relief| relief.caves_near);
+        for (n, computed) in missing.into_iter().zip(self.columns_at(&directions, resumed, column.lod, caves_possible))
+        {
             heights[n] = computed;
         }
         let heights: Arc<[Column]> = heights.into();
@@ -1882,7 +1893,7 @@ mod tests {
                     cells.iter().map(|&(i, j)| planet.layout.sample_direction(face, lod, i, j)).collect();
                 let samples: Vec<_> = cells.iter().map(|&(i, j)| planet.sample_column(face, lod, i, j)).collect();
                 let resumed = planet.grid_states_by_face(&samples, planet.layout.voxel_span(lod));
-                let columns = planet.columns_at(&directions, resumed, lod);
+                let columns = planet.columns_at(&directions, resumed, lod, true);
                 let mut exact = 0;
                 for ((direction, column), &(owner, point)) in directions.iter().zip(&columns).zip(&samples) {
                     // Every grid read at the column, as for a point between
