@@ -319,27 +319,25 @@ impl BranchlessPerlin {
         let [cx, cy, cz] = corner;
         cell.corner = corner;
         cell.corner_as_floats = corner.map(|c| c as f64);
-        {
-            // hash(a, b, c) = P[P[P[a] ^ b] ^ c] with every coordinate & 0xff.
-            let (x0, x1) = (self.entry(cx), self.entry(cx + 1));
-            let mask = |v: isize| (v & 0xff) as usize;
-            let (y0, y1, z0, z1) = (mask(cy), mask(cy + 1), mask(cz), mask(cz + 1));
-            let (a00, a10, a01, a11) = (x0 ^ y0, x1 ^ y0, x0 ^ y1, x1 ^ y1);
-            let gradient = |xy: usize, z_index: usize| {
-                let h = usize::from(self.table[usize::from(self.table[xy]) ^ z_index]) & 15;
-                [GRAD_X[h], GRAD_Y[h], GRAD_Z[h]]
-            };
-            cell.gradients = [
-                gradient(a00, z0),
-                gradient(a10, z0),
-                gradient(a01, z0),
-                gradient(a11, z0),
-                gradient(a00, z1),
-                gradient(a10, z1),
-                gradient(a01, z1),
-                gradient(a11, z1),
-            ];
-        }
+        // hash(a, b, c) = P[P[P[a] ^ b] ^ c] with every coordinate & 0xff.
+        let (x0, x1) = (self.entry(cx), self.entry(cx + 1));
+        let mask = |v: isize| (v & 0xff) as usize;
+        let (y0, y1, z0, z1) = (mask(cy), mask(cy + 1), mask(cz), mask(cz + 1));
+        let (a00, a10, a01, a11) = (x0 ^ y0, x1 ^ y0, x0 ^ y1, x1 ^ y1);
+        let gradient = |xy: usize, z_index: usize| {
+            let h = usize::from(self.table[usize::from(self.table[xy]) ^ z_index]) & 15;
+            [GRAD_X[h], GRAD_Y[h], GRAD_Z[h]]
+        };
+        cell.gradients = [
+            gradient(a00, z0),
+            gradient(a10, z0),
+            gradient(a01, z0),
+            gradient(a11, z0),
+            gradient(a00, z1),
+            gradient(a10, z1),
+            gradient(a01, z1),
+            gradient(a11, z1),
+        ];
     }
 }
 
@@ -663,7 +661,7 @@ impl Fractal {
         let mut cell = Cell::default();
         for points in active.chunks(if QUADS { 4 } else { 2 }) {
             let signals = match *points {
-                [a, b, c, d] => {
+                [a, b, c, d] if QUADS => {
                     source.get4_in([batch.points[a], batch.points[b], batch.points[c], batch.points[d]], &mut cell)
                 }
                 [a, b, c] => {
