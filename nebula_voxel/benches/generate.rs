@@ -75,18 +75,42 @@ fn flight_start_chunk(planet: &ProceduralPlanet) -> ChunkKey {
     surface_chunk(planet, at.face, 0, at.i / 32, at.j / 32)
 }
 
+/// A unit direction from `state`'s next three random numbers (`None` in
+/// the rare draw too short to normalise).
+fn random_direction(state: &mut u64) -> Option<nebula_math::DVec3> {
+    let mut unit = || nebula_math::unit_random(state) * 2.0 - 1.0;
+    nebula_math::DVec3::new(unit(), unit(), unit()).try_normalize()
+}
+
+/// The LOD-0 surface chunk at unit `direction`.
+fn chunk_at(planet: &ProceduralPlanet, direction: nebula_math::DVec3) -> ChunkKey {
+    let at = planet.layout().voxel_at(direction * 6.4e6).expect("over the planet");
+    surface_chunk(planet, at.face, 0, at.i / 32, at.j / 32)
+}
+
 /// A LOD-0 surface chunk in high mountains: at the first of a fixed
 /// sequence of random places whose ground is 1,500 m up or more.
 fn mountain_chunk(planet: &ProceduralPlanet) -> ChunkKey {
     let mut state = 0x0A1_u64;
     loop {
-        let mut unit = || nebula_math::unit_random(&mut state) * 2.0 - 1.0;
-        let Some(direction) = nebula_math::DVec3::new(unit(), unit(), unit()).try_normalize() else { continue };
-        if planet.height_at(direction) >= 1_500.0 {
-            let at = planet.layout().voxel_at(direction * 6.4e6).expect("over the planet");
-            return surface_chunk(planet, at.face, 0, at.i / 32, at.j / 32);
+        if let Some(direction) = random_direction(&mut state).filter(|&d| planet.height_at(d) >= 1_500.0) {
+            return chunk_at(planet, direction);
         }
     }
+}
+
+/// Fills `keys` one after another, from an empty height cache each
+/// iteration: chunks whose columns were never filled.
+fn fill_cold(b: &mut criterion::Bencher<'_>, planet: &ProceduralPlanet, keys: &[ChunkKey], voxels: &mut ChunkVoxels) {
+    b.iter_batched(
+        || planet.with_empty_cache(),
+        |planet| {
+            for &key in keys {
+                planet.fill_chunk(key, voxels).expect("valid key");
+            }
+        },
+        BatchSize::SmallInput,
+    );
 }
 
 fn generate(c: &mut Criterion) {
@@ -124,27 +148,14 @@ fn generate(c: &mut Criterion) {
     // chunk, not one hand-picked (each place far from the others, so none
     // borrows another's heights).
     let mut state = 0x5EED_u64;
-    let places: Vec<ChunkKey> = (0..32)
-        .map(|_| {
-            let mut unit = || nebula_math::unit_random(&mut state) * 2.0 - 1.0;
-            let direction = nebula_math::DVec3::new(unit(), unit(), unit()).normalize();
-            let at = planet.layout().voxel_at(direction * 6.4e6).expect("over the planet");
-            surface_chunk(&planet, at.face, 0, at.i / 32, at.j / 32)
-        })
+    let places: Vec<ChunkKey> = std::iter::from_fn(|| Some(random_direction(&mut state)))
+        .flatten()
+        .take(32)
+        .map(|d| chunk_at(&planet, d))
         .collect();
     let mut voxels = ChunkVoxels::new(places[0]);
     group.throughput(Throughput::Elements(32 * 32 * 32 * 32));
-    group.bench_function("fill_32_random_places_lod_0", |b| {
-        b.iter_batched(
-            || planet.with_empty_cache(),
-            |planet| {
-                for &key in &places {
-                    planet.fill_chunk(key, &mut voxels).expect("valid key");
-                }
-            },
-            BatchSize::SmallInput,
-        );
-    });
+    group.bench_function("fill_32_random_places_lod_0", |b| fill_cold(b, &planet, &places, &mut voxels));
     group.throughput(Throughput::Elements(32 * 32 * 32));
     // The voxels alone: the chunk's columns already in the height cache.
     let key = mountain_chunk(&planet);
@@ -160,19 +171,12 @@ fn generate(c: &mut Criterion) {
     let mut group = c.benchmark_group("voxel_column");
     for lod in [0u8, 8] {
         let column = ChunkColumn { face: CubeFace::PosZ, lod, x: 5, y: 7 };
-        let layers: Vec<i32> = planet.surface_chunk_layers(column).expect("on the planet").collect();
-        let mut voxels = ChunkVoxels::new(column.chunk(layers[0]));
+        let layers: Vec<ChunkKey> =
+            planet.surface_chunk_layers(column).expect("on the planet").map(|layer| column.chunk(layer)).collect();
+        let mut voxels = ChunkVoxels::new(layers[0]);
         group.throughput(Throughput::Elements(32 * 32 * 32 * layers.len() as u64));
         group.bench_with_input(BenchmarkId::new(format!("fill_{}_layers_lod", layers.len()), lod), &lod, |b, _| {
-            b.iter_batched(
-                || planet.with_empty_cache(),
-                |planet| {
-                    for &layer in &layers {
-                        planet.fill_chunk(column.chunk(layer), &mut voxels).expect("valid key");
-                    }
-                },
-                BatchSize::SmallInput,
-            );
+            fill_cold(b, &planet, &layers, &mut voxels);
         });
     }
     group.finish();
@@ -182,18 +186,8 @@ fn generate(c: &mut Criterion) {
     let mut group = c.benchmark_group("voxel_many_chunks");
     group.throughput(Throughput::Elements(64 * 32 * 32 * 32));
     group.sample_size(20);
-    group.bench_function("sequential_64", |b| {
-        let mut voxels = ChunkVoxels::new(keys[0]);
-        b.iter_batched(
-            || planet.with_empty_cache(),
-            |planet| {
-                for &key in &keys {
-                    planet.fill_chunk(key, &mut voxels).expect("valid key");
-                }
-            },
-            BatchSize::SmallInput,
-        );
-    });
+    let mut voxels = ChunkVoxels::new(keys[0]);
+    group.bench_function("sequential_64", |b| fill_cold(b, &planet, &keys, &mut voxels));
     group.bench_function("rayon_64", |b| {
         b.iter_batched(
             || planet.with_empty_cache(),
