@@ -101,10 +101,6 @@ pub struct ChunkMesher {
     column_direction: Vec<(u32, DVec3)>,
     /// The chunk's columns on the cube and their coordinates' warps.
     column_warps: ColumnWarps,
-    /// Per lattice point (`point_index`): `(stamp, world position)`.
-    /// (An array, not a `DVec3`, so that the table starts as zeroed pages,
-    /// not 1.2 MB written.)
-    point_world: Vec<(u32, [f64; 3])>,
     /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
     /// towards growing coordinate)`.
     wall_normal: Vec<(u32, DVec3)>,
@@ -164,8 +160,8 @@ impl Default for ChunkMesher {
 }
 
 impl ChunkMesher {
-    /// Scratch memory for one thread (about 3 MB: vertex slots and
-    /// positions by lattice point).
+    /// Scratch memory for one thread (about 1.8 MB, mostly vertex slots
+    /// by lattice point and side).
     #[must_use]
     pub fn new() -> Self {
         Self {
@@ -175,7 +171,6 @@ impl ChunkMesher {
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
             column_warps: ColumnWarps::default(),
-            point_world: vec![(0, [0.0; 3]); POINTS * POINTS * POINTS],
             wall_normal: vec![(0, DVec3::ZERO); 2 * POINTS],
             stamp: 0,
             chain_a: Vec::new(),
@@ -347,7 +342,6 @@ impl ChunkMesher {
             self.vertex_slot.fill((0, 0));
             self.column_direction.fill((0, DVec3::ZERO));
             self.column_warps = ColumnWarps::default();
-            self.point_world.fill((0, [0.0; 3]));
             self.wall_normal.fill((0, DVec3::ZERO));
             self.stamp = 1;
         }
@@ -826,12 +820,10 @@ impl ChunkMesher {
     }
 
     /// The canonical world position of local lattice point `local`: the
-    /// column's direction is computed once per chunk, each point once.
+    /// column's direction is computed once per chunk. (The position is
+    /// three multiplications from there: a table of positions by lattice
+    /// point, 1.2 MB, saved nothing measurable.)
     fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> DVec3 {
-        let index = point_index(local);
-        if self.point_world[index].0 == self.stamp {
-            return DVec3::from_array(self.point_world[index].1);
-        }
         let sphere = layout.sphere();
         let column = local[0] as usize * POINTS + local[2] as usize;
         if self.column_direction[column].0 != self.stamp {
@@ -846,9 +838,7 @@ impl ChunkMesher {
         // counts it (the chunk key is valid, so it fits).
         let span = layout.voxel_span(key.lod);
         let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
-        let world = sphere.position_on_column(self.column_direction[column].1, layer as i32);
-        self.point_world[index] = (self.stamp, world.to_array());
-        world
+        sphere.position_on_column(self.column_direction[column].1, layer as i32)
     }
 
     /// The exact normal of a voxel face looking towards `side` at `local`:
