@@ -59,6 +59,13 @@ pub(crate) struct Selection {
 }
 
 impl Selection {
+    /// Whether this state asks nothing of the next plan by itself: no
+    /// view work to wait for, and with prefetching, no tree change to make
+    /// the prefetch set for again.
+    pub(crate) fn is_still(&self, settings: &SelectSettings) -> bool {
+        !(self.view_busy || settings.prefetch && self.tree_changed)
+    }
+
     /// Before the first frame: the prefetch set is made once the view is
     /// meshed.
     pub(crate) fn new() -> Self {
@@ -96,7 +103,7 @@ struct SelectScratch {
 
 /// The streamer's settings a plan is made with, and the eye it is made
 /// for.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct SelectSettings {
     /// The frame the plan is for.
     pub(crate) frame: u64,
@@ -213,6 +220,11 @@ const MAX_TOPS_MEMO: usize = 200_000;
 
 /// Tight tops a plan asks the voxel source for at most.
 const NEW_TOPS_PER_PLAN: usize = 256;
+
+/// Every this many frames a plan lists the columns out of use for longer
+/// than [`SelectSettings::free_after_frames`] (listing them takes a walk
+/// over every column held).
+const AGING_PERIOD: u64 = 10;
 
 /// Chooses what to draw (see the module docs of [`crate::stream`]), the
 /// skirt depth of every drawn side, and the meshing jobs, by priority.
@@ -727,7 +739,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // sorting every column held was the step's slowest part in a frame
     // past the budget).
     let (mut aged, mut least_recent) = (Vec::new(), None);
-    let aging = frame.is_multiple_of(10);
+    let aging = frame.is_multiple_of(AGING_PERIOD);
     if aging || near_budget {
         let mut in_use = vec![false; columns.slot_bound()];
         for &(slot, _) in &used {
@@ -761,6 +773,65 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         aged,
         least_recent,
         millis: start.elapsed().as_secs_f64() * 1e3,
+    }
+}
+
+impl<H> Plan<H> {
+    /// This plan again, for a later frame of a still, settled view (see
+    /// [`repeatable_until`]): what it draws and uses, nothing to mesh, add
+    /// or free (a repeatable plan has none of those).
+    pub(crate) fn repeat(&self) -> Self {
+        Self {
+            draw: self.draw.clone(),
+            slots: self.slots.clone(),
+            arounds: self.arounds.clone(),
+            used: self.used.clone(),
+            new_columns: Vec::new(),
+            dropped_stale: Vec::new(),
+            jobs: Vec::new(),
+            forget_failed: Vec::new(),
+            unseen: self.unseen.clone(),
+            aged: Vec::new(),
+            least_recent: None,
+            millis: 0.0,
+        }
+    }
+}
+
+/// The frame before which `plan`, made from `input` and leaving
+/// `selection` as it is now, would be made again as it is (what
+/// [`Plan::repeat`] gives) by every later plan from the same tree, the same
+/// cached columns (none added, changed or freed: a column's last use
+/// aside, read only to free for age or near the budget), the same settings
+/// but the frame, and this selection state; `None` where the next plan may
+/// differ even so. Such a plan is a still view's, settled: nothing to mesh
+/// (prefetching done), free, retry, or sample, no edit awaited. What time
+/// alone changes bounds it: the next frame that lists the columns out of
+/// use, and the prefetch set's greatest age.
+pub(crate) fn repeatable_until<S: ?Sized, H>(
+    input: &SelectInput<'_, S, H>,
+    selection: &Selection,
+    plan: &Plan<H>,
+) -> Option<u64> {
+    let settled = input.stale.is_empty()
+        && input.gained.is_empty()
+        && input.failed.is_empty()
+        && plan.jobs.is_empty()
+        && plan.new_columns.is_empty()
+        && plan.dropped_stale.is_empty()
+        && plan.forget_failed.is_empty()
+        && plan.aged.is_empty()
+        && plan.least_recent.is_none()
+        && plan.draw.tops_awaited == 0
+        && selection.is_still(&input.settings);
+    let frame = input.settings.frame;
+    let aging = (frame / AGING_PERIOD + 1) * AGING_PERIOD;
+    match input.settings.prefetch {
+        _ if !settled => None,
+        false => Some(aging),
+        // A prefetch set is made first when the view has no work.
+        true if selection.prefetched_at == 0 => None,
+        true => Some(aging.min(selection.prefetched_at + PREFETCH_MAX_AGE_FRAMES)),
     }
 }
 

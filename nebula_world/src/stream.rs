@@ -393,15 +393,25 @@ impl<H> LayerMeshes<H> {
 pub(crate) struct ColumnStore<H> {
     slots: HashMap<ChunkColumn, usize>,
     columns: slab::Slab<CachedColumn<H>>,
+    /// Times the columns were taken to change ([`unshared`]): the same
+    /// count, the same columns (a column's last use aside,
+    /// [`MeshCache::mark_used`]).
+    changes: u64,
 }
 
 impl<H> Default for ColumnStore<H> {
     fn default() -> Self {
-        Self { slots: HashMap::default(), columns: slab::Slab::new() }
+        Self { slots: HashMap::default(), columns: slab::Slab::new(), changes: 0 }
     }
 }
 
 impl<H> ColumnStore<H> {
+    /// Times the columns were taken to change: while it stays, so do they
+    /// (but for their last uses).
+    pub(crate) fn changes(&self) -> u64 {
+        self.changes
+    }
+
     pub(crate) fn get(&self, column: &ChunkColumn) -> Option<&CachedColumn<H>> {
         self.slots.get(column).map(|&slot| &self.columns[slot])
     }
@@ -530,6 +540,21 @@ impl<H: MeshHandle> MeshCache<H> {
         unshared(&mut self.columns)
     }
 
+    /// Marks the columns in `used` (by slot) as used in `frame`, without
+    /// counting a change ([`ColumnStore::changes`]): a plan reads a
+    /// column's last use only to free it (for age, or near the budget),
+    /// and a plan that frees is not repeated
+    /// ([`repeatable_until`](crate::select::repeatable_until)).
+    fn mark_used(&mut self, used: &[(usize, ChunkColumn)], frame: u64) {
+        let columns =
+            Arc::get_mut(&mut self.columns).expect("the cached columns are shared only while the LOD thread plans");
+        for &(slot, column) in used {
+            if let Some(cached) = columns.in_slot_mut(slot, column) {
+                cached.last_used = frame;
+            }
+        }
+    }
+
     /// Whether the mesh of `key` is held.
     /// Whether the mesh of chunk `key` is held.
     #[must_use]
@@ -643,7 +668,9 @@ impl<H: MeshHandle> MeshCache<H> {
 /// them (the streamer takes its plan back first, and the thread lets go of
 /// them before it sends the plan).
 fn unshared<H>(columns: &mut Arc<ColumnStore<H>>) -> &mut ColumnStore<H> {
-    Arc::get_mut(columns).expect("the cached columns are shared only while the LOD thread plans")
+    let columns = Arc::get_mut(columns).expect("the cached columns are shared only while the LOD thread plans");
+    columns.changes += 1;
+    columns
 }
 
 /// Which work a job is: the view's first, then seams, then prefetching.
@@ -1543,15 +1570,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         } = plan;
         let frame = self.frame;
         let cache = &mut self.cache;
-        let columns = cache.columns_mut();
-        for (slot, column) in used {
-            if let Some(cached) = columns.in_slot_mut(slot, column) {
-                cached.last_used = frame;
+        cache.mark_used(&used, frame);
+        if !new_columns.is_empty() {
+            let columns = cache.columns_mut();
+            for cached in new_columns {
+                // Collected meshes may have brought the column in already.
+                columns.get_or_insert_with(cached.column, || cached).1.last_used = frame;
             }
-        }
-        for cached in new_columns {
-            // Collected meshes may have brought the column in already.
-            columns.get_or_insert_with(cached.column, || cached).1.last_used = frame;
         }
         for key in dropped_stale {
             // Unless its new mesh came meanwhile.
@@ -1714,6 +1739,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn lod_tree_copies(&self) -> u64 {
         self.lod_thread.as_ref().map_or(0, LodThread::copies)
+    }
+
+    /// Plans the LOD thread sent that were its plan before again, not made
+    /// anew: a still camera over a settled view (nothing to mesh, free or
+    /// wait for) is planned once, and again only every few frames, where
+    /// the cache lists what is out of use.
+    #[must_use]
+    pub fn lod_plans_repeated(&self) -> u64 {
+        self.lod_thread.as_ref().map_or(0, LodThread::repeats)
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty

@@ -1167,6 +1167,53 @@ mod streaming {
     }
 
     #[test]
+    fn a_still_settled_view_is_planned_anew_only_where_time_can_change_it() {
+        // A still camera over a settled view gets the LOD thread's plan
+        // before again instead of a new one (`Repeatable`), but where the
+        // cache lists the columns out of use (every tenth frame): the same
+        // draw list every frame, and what the view turned from is still
+        // freed for age. Prefetching off: nothing out of view is kept.
+        let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let eye = world.source().base().surface_point(up) + up * 30.0;
+        let side = up.any_orthonormal_vector();
+        let looking = |forward: DVec3| Camera { position: eye, forward, up, aspect: 1.6 };
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(world.voxels(), lod, looking(side), 2, &mut { upload }).unwrap();
+        streamer.cache.prefetch = false;
+        streamer.cache.free_after_frames = u64::MAX / 2;
+        let settle = |streamer: &mut Streamer<_, Sized>, camera: Camera| {
+            for done in 0.. {
+                streamer.update(camera, &mut { upload });
+                if streamer.settled() && streamer.jobs_in_flight() == 0 && done > 20 {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                assert!(done < 20_000, "did not settle");
+            }
+        };
+        settle(&mut streamer, looking(side));
+        // Turned away: the first view's columns are out of use from now.
+        let turned = looking(-side);
+        settle(&mut streamer, turned);
+        let (held, repeats) = (streamer.cache.chunks(), streamer.lod_plans_repeated());
+        let drawn = streamer.draw_list().columns.clone();
+        streamer.cache.free_after_frames = 5;
+        for frame in 0..60 {
+            streamer.update(turned, &mut { upload });
+            assert!(streamer.draw_list().columns == drawn, "frame {frame} of the hold draws something else");
+        }
+        let repeated = streamer.lod_plans_repeated() - repeats;
+        println!("{repeated} of 60 still frames repeated a plan; {held} chunks held -> {}", streamer.cache.chunks());
+        assert!(repeated >= 40, "{repeated} of 60 still frames repeated the plan before");
+        assert!(
+            streamer.cache.chunks() < held,
+            "nothing out of use was freed for age in 60 still frames ({held} chunks held)"
+        );
+    }
+
+    #[test]
     fn a_tower_that_adds_a_chunk_layer_keeps_its_column_on_screen() {
         // A tower on the ground in view up to 8 voxels into the chunk layer
         // above the column's highest: its column gains a layer. The column stays drawn
