@@ -1,10 +1,14 @@
 //! The frame thread's share of a streamed Earth view: one
 //! `Streamer::update` on a settled view 300 m over land at 640×400, its
-//! out-of-view prefetching done and meshing paused (the LOD tree has
-//! nothing to change, so this is the selection: which columns are drawn,
-//! their stand-ins, skirt depths and sides, the job list), against the
-//! baseline of merely walking the tree's visible leaves once in the same
-//! run. Run: `cargo bench -p nebula_world --bench step`.
+//! out-of-view prefetching done and meshing paused, against the baseline
+//! of merely walking the tree's visible leaves once in the same run.
+//! `step_settled`: the LOD thread repeats its plan before for a still
+//! camera over a settled view (nothing can change it), so this is applying
+//! a plan; `step_settled_planned`: the same update with no LOD thread,
+//! planned on the frame thread each time (the LOD tree has nothing to
+//! change, so this is the selection: which columns are drawn, their
+//! stand-ins, skirt depths and sides, the job list), what every still frame
+//! cost before. Run: `cargo bench -p nebula_world --bench step`.
 //!
 //! `step_waiting`: the frame after the camera jumped 30 km on, every leaf
 //! of the new view waiting for its meshes and drawn through a stand-in or
@@ -85,6 +89,9 @@ fn bench(c: &mut Criterion) {
         });
     });
     group.bench_function("step_settled", |b| b.iter(|| streamer.update(ahead, &mut upload)));
+    streamer.set_lod_thread(false);
+    group.bench_function("step_settled_planned", |b| b.iter(|| streamer.update(ahead, &mut upload)));
+    streamer.set_lod_thread(true);
 
     let figures = streamer.figures();
     println!(
