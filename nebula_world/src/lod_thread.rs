@@ -111,8 +111,12 @@ pub(crate) struct Outcome<H> {
     /// The selection planned on the tree (if the update and the plan went
     /// through).
     pub(crate) plan: Option<Plan<H>>,
-    /// The plan is the one before again ([`Repeatable`]).
-    repeated: bool,
+    /// The plan's number: each plan made gets the next, a repeated one
+    /// keeps its own.
+    pub(crate) plan_number: u64,
+    /// The plan is the one before again ([`Repeatable`]), and so is the
+    /// tree's cull.
+    pub(crate) repeated: bool,
 }
 
 /// The frame thread's end of the LOD thread.
@@ -250,7 +254,9 @@ impl<S, H> Drop for LodThread<S, H> {
 /// changes but the frame (a still, settled view:
 /// [`repeatable_until`]): a still camera's frames take it again instead of
 /// planning (every frame's plan, 10–20 ms on an Earth view, kept a core of
-/// the 2-core machine a third to half busy while nothing moved).
+/// the 2-core machine a third to half busy while nothing moved), and the
+/// tree's cull with it (the frame thread keeps what it draws:
+/// [`Outcome::repeated`]).
 struct Repeatable<H> {
     /// What it was made from: the eye and margin, the cached columns'
     /// change count ([`ColumnStore::changes`]) and the settings, frame
@@ -259,6 +265,8 @@ struct Repeatable<H> {
     /// The first frame it may differ for.
     until: u64,
     plan: Plan<H>,
+    /// Its number ([`Outcome::plan_number`]).
+    number: u64,
 }
 
 impl<H> Repeatable<H> {
@@ -289,6 +297,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
     // since: a still camera over a settled tree is not culled again.
     let mut culled_for: Option<(Camera, CullMargin)> = None;
     let mut repeatable: Option<Repeatable<H>> = None;
+    let mut plans_made = 0;
     while let Ok(first) = inbox.recv() {
         // At most one update is in flight: the frame thread takes each
         // outcome before it asks again.
@@ -355,13 +364,18 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
         // A panic in the voxel source while planning leaves the plan to the
         // frame thread, which reports it.
         let mut repeated = false;
+        let mut plan_number = plans_made;
         let plan = changed.and_then(|_| {
             let made_from = (camera, margin, columns.changes(), frameless(settings));
             let still = stale.is_empty() && gained.is_empty() && failed.is_empty() && selection.is_still(&settings);
-            if let Some(plan) = repeatable.as_ref().filter(|_| still).and_then(|r| r.serve(made_from, settings.frame)) {
-                repeated = true;
+            if let Some(repeatable) = repeatable.as_ref().filter(|_| still)
+                && let Some(plan) = repeatable.serve(made_from, settings.frame)
+            {
+                (repeated, plan_number) = (true, repeatable.number);
                 return Some(plan);
             }
+            plans_made += 1;
+            plan_number = plans_made;
             let input = SelectInput {
                 voxels: &*voxels,
                 tree: &tree,
@@ -374,7 +388,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
             let plan = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok();
             repeatable = plan.as_ref().and_then(|plan| {
                 let until = repeatable_until(&input, &selection, plan)?;
-                Some(Repeatable { made_from, until, plan: plan.repeat() })
+                Some(Repeatable { made_from, until, plan: plan.repeat(), number: plan_number })
             });
             plan
         });
@@ -392,7 +406,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
                 MadeTree::Whole(Box::new(tree.clone()), next_copy)
             }
         });
-        let outcome = Outcome { tree: made, commands, selection: Some(selection), plan, repeated };
+        let outcome = Outcome { tree: made, commands, selection: Some(selection), plan, plan_number, repeated };
         if outbox.send(outcome).is_err() {
             return;
         }

@@ -806,9 +806,10 @@ impl<H> Plan<H> {
 /// but the frame, and this selection state; `None` where the next plan may
 /// differ even so. Such a plan is a still view's, settled: nothing to mesh
 /// (prefetching done), free, retry, or sample, no edit awaited. What time
-/// alone changes bounds it: the next frame that lists the columns out of
-/// use, and the prefetch set's greatest age.
-pub(crate) fn repeatable_until<S: ?Sized, H>(
+/// alone changes bounds it: the first frame that lists a column out of
+/// use for too long (those it uses are used again each frame it is
+/// repeated), and the prefetch set's greatest age.
+pub(crate) fn repeatable_until<S: VoxelSource + ?Sized, H>(
     input: &SelectInput<'_, S, H>,
     selection: &Selection,
     plan: &Plan<H>,
@@ -824,10 +825,30 @@ pub(crate) fn repeatable_until<S: ?Sized, H>(
         && plan.least_recent.is_none()
         && plan.draw.tops_awaited == 0
         && selection.is_still(&input.settings);
+    if !settled {
+        return None;
+    }
     let frame = input.settings.frame;
-    let aging = (frame / AGING_PERIOD + 1) * AGING_PERIOD;
+    let next_aging = (frame / AGING_PERIOD + 1) * AGING_PERIOD;
+    // The column out of use the longest, not kept for prefetching.
+    let mut in_use = vec![false; input.columns.slot_bound()];
+    for &(slot, _) in &plan.used {
+        if let Some(in_use) = in_use.get_mut(slot) {
+            *in_use = true;
+        }
+    }
+    let max_lod = input.voxels.layout().max_lod();
+    let candidates = least_recently_used(input.columns, &selection.keep, max_lod, |slot, _| in_use[slot]);
+    let aging = match candidates.first() {
+        Some(&(false, last_used, _, _)) => {
+            // Listed at the first aging frame past its limit.
+            let limit = last_used.saturating_add(input.settings.free_after_frames);
+            let listed = (limit / AGING_PERIOD).saturating_add(1).saturating_mul(AGING_PERIOD);
+            listed.max(next_aging)
+        }
+        _ => u64::MAX,
+    };
     match input.settings.prefetch {
-        _ if !settled => None,
         false => Some(aging),
         // A prefetch set is made first when the view has no work.
         true if selection.prefetched_at == 0 => None,

@@ -1033,6 +1033,10 @@ pub struct Streamer<S, H> {
     /// The camera the tree's visible leaves were last picked for, while
     /// the tree has not changed since.
     culled_for: Option<Camera>,
+    /// The LOD thread's plan applied last (its number), the eye it was
+    /// applied for and the cached columns' change count after it: while
+    /// those stand, the same plan again draws what is drawn.
+    applied: Option<(u64, Camera, u64)>,
     /// What the selection keeps from frame to frame (`None` while the
     /// LOD thread plans with it: [`Streamer::selection_mut`] takes it
     /// back).
@@ -1156,6 +1160,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             eye: camera,
             sea: None,
             culled_for: None,
+            applied: None,
             selection: Some(Box::new(Selection::new())),
             early: None,
             prefetch_done: false,
@@ -1356,6 +1361,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // The tree made ahead for this frame, when its cull covers the
         // camera that came; else the frame thread updates its own.
         let mut plan = None;
+        let made = made_ahead.as_ref().map(|outcome| (outcome.plan_number, outcome.repeated));
         match made_ahead.map(|outcome| self.take_made_ahead(outcome, &camera)) {
             Some(Some(planned)) => {
                 self.lod_frames.0 += 1;
@@ -1375,7 +1381,23 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 None => (self.plan_here(), true),
             };
             self.times.planned_ahead = !here;
-            self.apply(plan);
+            let number = made.filter(|_| !here).map(|(number, _)| number);
+            let drawn_again = made.is_some_and(|(_, repeated)| repeated)
+                && self.collected.is_empty()
+                && number.is_some_and(|number| self.applied == Some((number, camera, self.cache.columns.changes())));
+            if drawn_again {
+                // The plan drawn now, for the same eye over the same
+                // columns: what it draws stands (its walls that look away
+                // included), and nothing is to mesh.
+                let applying = Instant::now();
+                self.cache.mark_used(&plan.used, self.frame);
+                self.free(Vec::new(), None);
+                self.times.plan_ms = 0.0;
+                self.times.select_ms = applying.elapsed().as_secs_f64() * 1e3;
+            } else {
+                self.apply(plan);
+            }
+            self.applied = number.map(|number| (number, camera, self.cache.columns.changes()));
             if here {
                 self.times.select_ms += self.times.plan_ms;
             }
@@ -1482,6 +1504,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 // alone only for the copy the request said it holds).
                 if thread.holding() != Some(copy) {
                     return None;
+                }
+                if outcome.repeated && self.culled_for == Some(*camera) {
+                    // The cull this tree was narrowed from, for this eye.
+                    return Some(outcome.plan);
                 }
                 let own = self.tree.cull_result();
                 self.tree.set_cull(cull);
@@ -1743,8 +1769,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// Plans the LOD thread sent that were its plan before again, not made
     /// anew: a still camera over a settled view (nothing to mesh, free or
-    /// wait for) is planned once, and again only every few frames, where
-    /// the cache lists what is out of use.
+    /// wait for) is planned once, and again only where time alone may
+    /// change the plan (a column out of use long enough to free, the
+    /// prefetch set's greatest age). The frame thread then keeps what it
+    /// draws as it is.
     #[must_use]
     pub fn lod_plans_repeated(&self) -> u64 {
         self.lod_thread.as_ref().map_or(0, LodThread::repeats)

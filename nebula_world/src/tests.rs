@@ -1169,10 +1169,10 @@ mod streaming {
     #[test]
     fn a_still_settled_view_is_planned_anew_only_where_time_can_change_it() {
         // A still camera over a settled view gets the LOD thread's plan
-        // before again instead of a new one (`Repeatable`), but where the
-        // cache lists the columns out of use (every tenth frame): the same
-        // draw list every frame, and what the view turned from is still
-        // freed for age. Prefetching off: nothing out of view is kept.
+        // before again instead of a new one (`Repeatable`), but where a
+        // column out of use is old enough to free: the same draw list
+        // every frame, and what the view turned from is still freed for
+        // age. Prefetching off: nothing out of view is kept.
         let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let up = DVec3::new(0.3, 0.8, 0.5).normalize();
