@@ -97,34 +97,39 @@ impl TerrainHorizon {
             return horizon;
         }
         let margin = margin.max(0.0);
-        // The bearings over which the disc inscribed in `bounds`' patch,
-        // shrunk by the margin at `radius`, runs at its centre's angle
-        // from the eye, as (that angle, the centre's bearing, half the
-        // arc); `None` where it adds nothing.
-        let arc = |bounds: &NodeBounds, radius: f64| {
+        // Half the bearings over which the disc inscribed in `bounds`'
+        // patch, shrunk by the margin at `radius`, runs at its centre's
+        // angle from the eye (`angle`, its sine and cosine); `None` where
+        // it adds nothing.
+        let half_arc = |bounds: &NodeBounds, radius: f64, angle: f64, (sin, cos): (f64, f64)| {
             // A point of the segment moves by the margin at most; the
             // deepest such point is at 0.7 of the floor (within 90°).
             let inner = bounds.inner_angular_radius - 2.0 * margin / radius;
-            let angle = horizon.angle_to(bounds.center_direction);
             if !(radius > 0.0 && inner > 0.0 && angle > inner && angle < FRAC_PI_2) {
                 return None;
             }
-            let (sin, cos) = angle.sin_cos();
             let cos_half = (inner.cos() - cos * cos) / (sin * sin);
-            Some((angle, horizon.bearing(bounds.center_direction), cos_half.clamp(-1.0, 1.0).acos()))
+            Some(cos_half.clamp(-1.0, 1.0).acos())
         };
         // The arcs of every leaf (for the bins' size, from its lowest
         // surface, whether or not it has a floor yet), and the floors'
-        // rises as (angle, slope, bearing, half the arc).
+        // rises as (angle, slope, bearing, half the arc). A leaf's angle
+        // and its sine and cosine are found once for both.
         let mut halves = Vec::new();
         let mut rises: Vec<(f64, f64, f64, f64)> = Vec::new();
         for (bounds, floor) in leaves {
-            if let Some((_, _, half)) = arc(&bounds, bounds.min_radius - margin) {
+            let angle = horizon.angle_to(bounds.center_direction);
+            if !(angle > 0.0 && angle < FRAC_PI_2) {
+                // No arc from either radius (each needs `0 < inner < angle`).
+                continue;
+            }
+            let sin_cos = angle.sin_cos();
+            if let Some(half) = half_arc(&bounds, bounds.min_radius - margin, angle, sin_cos) {
                 halves.push(half);
             }
             let Some(floor) = floor.map(|floor| floor - margin) else { continue };
-            if let Some((angle, bearing, half)) = arc(&bounds, floor) {
-                rises.push((angle, slope(distance, floor, angle), bearing, half));
+            if let Some(half) = half_arc(&bounds, floor, angle, sin_cos) {
+                rises.push((angle, slope(distance, floor, angle), horizon.bearing(bounds.center_direction), half));
             }
         }
         // Bins about a third of the median arc: an arc then covers two or
@@ -184,8 +189,6 @@ impl TerrainHorizon {
         if !(near > 0.0 && far < FRAC_PI_2) {
             return None;
         }
-        let mut clearance = Clearance { slope: f64::INFINITY, distance: self.distance, near, far };
-        let lowest = clearance.highest(bounds.min_radius);
         let half = (bounds.angular_radius.sin() / centre.sin()).min(1.0).asin();
         let count = self.bins.len() as i64;
         let width = TAU / count as f64;
@@ -195,17 +198,21 @@ impl TerrainHorizon {
         if last - first >= count {
             return None;
         }
+        // The lowest of the bins' highest rises nearer than the bounds
+        // (a bin with none: the lowest surface is seen, whatever it is).
+        let mut lowest_rise = f64::INFINITY;
         for bin in first..=last {
             let steps = &self.bins[bin.rem_euclid(count) as usize];
-            // The highest rise nearer than the bounds.
             let nearer = steps.partition_point(|s| s.angle < near);
-            let rise = if nearer > 0 { steps[nearer - 1].slope } else { f64::NEG_INFINITY };
-            if rise <= lowest {
+            if nearer == 0 {
                 return None;
             }
-            clearance.slope = clearance.slope.min(rise);
+            lowest_rise = lowest_rise.min(steps[nearer - 1].slope);
         }
-        Some(clearance)
+        let clearance = Clearance { slope: lowest_rise, distance: self.distance, near, far };
+        // Seen where a line of sight over some bin clears the lowest
+        // surface.
+        (lowest_rise > clearance.highest(bounds.min_radius)).then_some(clearance)
     }
 }
 

@@ -1740,9 +1740,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// update their own and plan as with `false`. Returns whether the
     /// thread runs (it may not start).
     pub fn set_lod_thread(&mut self, on: bool) -> bool {
-        // What the old thread made is not for the new one.
+        // What the old thread made is not for the new one (nor are its
+        // plans' numbers).
         self.reclaim();
         self.early = None;
+        self.applied = None;
         self.lod_thread = if on { LodThread::start(&self.tree).ok() } else { None };
         self.lod_thread.is_some()
     }
