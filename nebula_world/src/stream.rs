@@ -546,8 +546,7 @@ impl<H: MeshHandle> MeshCache<H> {
     /// and a plan that frees is not repeated
     /// ([`repeatable_until`](crate::select::repeatable_until)).
     fn mark_used(&mut self, used: &[(usize, ChunkColumn)], frame: u64) {
-        let columns =
-            Arc::get_mut(&mut self.columns).expect("the cached columns are shared only while the LOD thread plans");
+        let columns = unshared_uncounted(&mut self.columns);
         for &(slot, column) in used {
             if let Some(cached) = columns.in_slot_mut(slot, column) {
                 cached.last_used = frame;
@@ -668,9 +667,15 @@ impl<H: MeshHandle> MeshCache<H> {
 /// them (the streamer takes its plan back first, and the thread lets go of
 /// them before it sends the plan).
 fn unshared<H>(columns: &mut Arc<ColumnStore<H>>) -> &mut ColumnStore<H> {
-    let columns = Arc::get_mut(columns).expect("the cached columns are shared only while the LOD thread plans");
+    let columns = unshared_uncounted(columns);
     columns.changes += 1;
     columns
+}
+
+/// [`unshared`] without counting a change: for marking last uses alone
+/// ([`MeshCache::mark_used`]).
+fn unshared_uncounted<H>(columns: &mut Arc<ColumnStore<H>>) -> &mut ColumnStore<H> {
+    Arc::get_mut(columns).expect("the cached columns are shared only while the LOD thread plans")
 }
 
 /// Which work a job is: the view's first, then seams, then prefetching.
