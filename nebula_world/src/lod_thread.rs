@@ -367,15 +367,6 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
         let mut plan_number = plans_made;
         let plan = changed.and_then(|_| {
             let made_from = (camera, margin, columns.changes(), frameless(settings));
-            let still = stale.is_empty() && gained.is_empty() && failed.is_empty() && selection.is_still(&settings);
-            if let Some(repeatable) = repeatable.as_ref().filter(|_| still)
-                && let Some(plan) = repeatable.serve(made_from, settings.frame)
-            {
-                (repeated, plan_number) = (true, repeatable.number);
-                return Some(plan);
-            }
-            plans_made += 1;
-            plan_number = plans_made;
             let input = SelectInput {
                 voxels: &*voxels,
                 tree: &tree,
@@ -385,6 +376,14 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
                 failed: &failed,
                 settings,
             };
+            if let Some(repeatable) = repeatable.as_ref().filter(|_| input.asks_nothing(&selection))
+                && let Some(plan) = repeatable.serve(made_from, settings.frame)
+            {
+                (repeated, plan_number) = (true, repeatable.number);
+                return Some(plan);
+            }
+            plans_made += 1;
+            plan_number = plans_made;
             let plan = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok();
             repeatable = plan.as_ref().and_then(|plan| {
                 let until = repeatable_until(&input, &selection, plan)?;

@@ -148,6 +148,15 @@ pub(crate) struct SelectInput<'a, S: ?Sized, H> {
     pub(crate) settings: SelectSettings,
 }
 
+impl<S: ?Sized, H> SelectInput<'_, S, H> {
+    /// Whether nothing here or in `selection` asks the next plan for
+    /// work by itself: no edit's meshes awaited, no failure to retry, and
+    /// the selection still ([`Selection::is_still`]).
+    pub(crate) fn asks_nothing(&self, selection: &Selection) -> bool {
+        self.stale.is_empty() && self.gained.is_empty() && self.failed.is_empty() && selection.is_still(&self.settings)
+    }
+}
+
 /// A frame's selection, to apply to the streamer it was made from.
 pub(crate) struct Plan<H> {
     /// What to draw: skirts for the LODs drawn around each column, no
@@ -741,12 +750,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     let (mut aged, mut least_recent) = (Vec::new(), None);
     let aging = frame.is_multiple_of(AGING_PERIOD);
     if aging || near_budget {
-        let mut in_use = vec![false; columns.slot_bound()];
-        for &(slot, _) in &used {
-            if let Some(in_use) = in_use.get_mut(slot) {
-                *in_use = true;
-            }
-        }
+        let in_use = slots_in_use(columns, &used);
         let candidates = least_recently_used(columns, keep, max_lod, |slot, _| in_use[slot]);
         if aging {
             aged.extend(
@@ -814,29 +818,21 @@ pub(crate) fn repeatable_until<S: VoxelSource + ?Sized, H>(
     selection: &Selection,
     plan: &Plan<H>,
 ) -> Option<u64> {
-    let settled = input.stale.is_empty()
-        && input.gained.is_empty()
-        && input.failed.is_empty()
+    let settled = input.asks_nothing(selection)
         && plan.jobs.is_empty()
         && plan.new_columns.is_empty()
         && plan.dropped_stale.is_empty()
         && plan.forget_failed.is_empty()
         && plan.aged.is_empty()
         && plan.least_recent.is_none()
-        && plan.draw.tops_awaited == 0
-        && selection.is_still(&input.settings);
+        && plan.draw.tops_awaited == 0;
     if !settled {
         return None;
     }
     let frame = input.settings.frame;
     let next_aging = (frame / AGING_PERIOD + 1) * AGING_PERIOD;
     // The column out of use the longest, not kept for prefetching.
-    let mut in_use = vec![false; input.columns.slot_bound()];
-    for &(slot, _) in &plan.used {
-        if let Some(in_use) = in_use.get_mut(slot) {
-            *in_use = true;
-        }
-    }
+    let in_use = slots_in_use(input.columns, &plan.used);
     let max_lod = input.voxels.layout().max_lod();
     let candidates = least_recently_used(input.columns, &selection.keep, max_lod, |slot, _| in_use[slot]);
     let aging = match candidates.first() {
@@ -854,6 +850,17 @@ pub(crate) fn repeatable_until<S: VoxelSource + ?Sized, H>(
         true if selection.prefetched_at == 0 => None,
         true => Some(aging.min(selection.prefetched_at + PREFETCH_MAX_AGE_FRAMES)),
     }
+}
+
+/// Whether each slot of `columns` is one of `used`, by slot.
+fn slots_in_use<H>(columns: &ColumnStore<H>, used: &[(usize, ChunkColumn)]) -> Vec<bool> {
+    let mut in_use = vec![false; columns.slot_bound()];
+    for &(slot, _) in used {
+        if let Some(in_use) = in_use.get_mut(slot) {
+            *in_use = true;
+        }
+    }
+    in_use
 }
 
 /// The cached columns that may be freed (not a face root, not
