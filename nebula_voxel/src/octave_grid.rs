@@ -158,6 +158,11 @@ impl Grid {
     fn interpolate(&self, points: &[[f64; 2]]) -> Vec<OctaveState> {
         let mut along_v: Vec<OctaveState> = Vec::with_capacity(self.width);
         let mut row_v = f64::NAN;
+        // The cells along `u` of the last row's points by their place in
+        // the row: the rows of a chunk (and of a grid's nodes) repeat the
+        // same `u`s, whose cells are then read, not found again.
+        let mut u_cells: Vec<(f64, usize, usize, f64)> = Vec::new();
+        let mut place = 0;
         points
             .iter()
             .map(|&[u, v]| {
@@ -168,8 +173,18 @@ impl Grid {
                     along_v.clear();
                     along_v.extend(below.iter().zip(above).map(|(a, b)| a.lerp(*b, tv)));
                     row_v = v;
+                    place = 0;
                 }
-                let (u0, u1, tu) = self.cell(u, 0);
+                let (u0, u1, tu) = match u_cells.get(place) {
+                    Some(&(known, u0, u1, tu)) if known == u => (u0, u1, tu),
+                    _ => {
+                        let (u0, u1, tu) = self.cell(u, 0);
+                        u_cells.truncate(place);
+                        u_cells.push((u, u0, u1, tu));
+                        (u0, u1, tu)
+                    }
+                };
+                place += 1;
                 along_v[u0].lerp(along_v[u1], tu)
             })
             .collect()

@@ -314,6 +314,15 @@ impl SurfaceThresholds {
     }
 }
 
+/// One open column's ends at a look of `ProceduralPlanet::columns_at`,
+/// each `(low, high)`: the continents sum, the mountains term and H.
+#[derive(Clone, Copy)]
+struct LookEnds {
+    continents: (f64, f64),
+    mountains: (f64, f64),
+    heights: (f64, f64),
+}
+
 /// Ranges `(low, high)` of the three noise sums of [`ProceduralPlanet::combine`]
 /// over some place.
 #[derive(Clone, Copy, Debug)]
@@ -895,11 +904,30 @@ impl ProceduralPlanet {
                 }
             }
             let continents_spread = voxel_m / (LAND_SLOPE * self.settings.amplitude);
+            // Each open column's ends of H and of the climate first, in one
+            // pass with no branch between columns (their arithmetic
+            // overlaps), then the tests.
+            let ends: Vec<LookEnds> = open
+                .iter()
+                .map(|&k| {
+                    let (c_low, c_high) = self.continents.bounds(&batches[0], k);
+                    let (r_low, r_high) = self.ridges.bounds(&batches[1], k);
+                    let (h_low, h_high) = self.hills.bounds(&batches[2], k);
+                    let (m_low, m_high) = (self.mountains(c_low, r_low), self.mountains(c_high, r_high));
+                    LookEnds {
+                        continents: (c_low, c_high),
+                        mountains: (m_low, m_high),
+                        heights: (self.height_of(c_low, m_low, h_low), self.height_of(c_high, m_high, h_high)),
+                    }
+                })
+                .collect();
+            let mut ends = ends.into_iter();
             open.retain(|&k| {
+                let LookEnds { continents: (c_low, c_high), mountains: (m_low, m_high), heights: (low, high) } =
+                    ends.next().expect("one per open column");
                 if !last && caves[k].near {
                     return true;
                 }
-                let (c_low, c_high) = self.continents.bounds(&batches[0], k);
                 // The continents alone spread H by at least
                 // LAND_SLOPE·amplitude per unit (`combine`, short of its clamp): a spread of a voxel or
                 // more holds a voxel threshold, so such a column stays open
@@ -907,12 +935,12 @@ impl ProceduralPlanet {
                 if !last && c_high - c_low >= continents_spread {
                     return true;
                 }
-                let (r_low, r_high) = self.ridges.bounds(&batches[1], k);
-                let (h_low, h_high) = self.hills.bounds(&batches[2], k);
-                let (low, high) = (self.combine(c_low, r_low, h_low), self.combine(c_high, r_high, h_high));
                 // The climate's ranges, as H's (`mountains` rises with both sums).
-                let climates = [(c_low, self.mountains(c_low, r_low)), (c_high, self.mountains(c_high, r_high))]
-                    .map(|(continents, mountains)| Climate { sin_latitude: directions[k].z, continents, mountains });
+                let climates = [(c_low, m_low), (c_high, m_high)].map(|(continents, mountains)| Climate {
+                    sin_latitude: directions[k].z,
+                    continents,
+                    mountains,
+                });
                 if !last && self.undecided_apart_from_edges(low, high, climates, &thresholds[k], span) {
                     return true;
                 }
@@ -1006,9 +1034,14 @@ impl ProceduralPlanet {
 
     /// The height from the three noise sums at a point (module docs).
     fn combine(&self, continents: f64, ridges: f64, hills: f64) -> f64 {
+        self.height_of(continents, self.mountains(continents, ridges), hills)
+    }
+
+    /// [`Self::combine`] with its mountains term already known.
+    #[inline]
+    fn height_of(&self, continents: f64, mountains: f64, hills: f64) -> f64 {
         let hills = unit_hills(hills);
         let slope = if continents < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
-        let mountains = self.mountains(continents, ridges);
         self.settings.amplitude * (slope * continents + MOUNTAIN_SHARE * mountains).clamp(-1.0, 1.0)
             + self.settings.detail_amplitude * hills * (1.0 + MOUNTAIN_ROUGHNESS * mountains)
     }
@@ -1350,6 +1383,7 @@ impl ProceduralPlanet {
         // Each missing column's owning face and LOD-0 column there.
         let mut samples = Vec::with_capacity(heights.len());
         let span_columns = self.layout.voxel_span(column.lod);
+        let on_face = |c: i64| (0..per_edge).contains(&c);
         for (n, height) in (0..padded * padded).zip(&mut heights) {
             let (i, j) = (base_i + n % padded, base_j + n / padded);
             let edge_rows = |c: i64| c < 2 || c >= padded - 2;
@@ -1362,7 +1396,13 @@ impl ProceduralPlanet {
                     (Some(wi), Some(wj)) => sphere.direction_warped(column.face, wi, wj),
                     _ => self.layout.sample_direction(column.face, column.lod, i, j),
                 });
-                samples.push(self.sample_column(column.face, column.lod, i, j));
+                samples.push(if on_face(i) && on_face(j) {
+                    // On the face: the column itself (`sample_column`'s
+                    // far corner, with nothing to wrap or clamp).
+                    (column.face, [((i + 1) * span_columns - 1) as f64, ((j + 1) * span_columns - 1) as f64])
+                } else {
+                    self.sample_column(column.face, column.lod, i, j)
+                });
             }
         }
         // The grids' octaves, face by face (a chunk at a face edge has
@@ -1390,6 +1430,14 @@ impl ProceduralPlanet {
     /// it) for columns of `spacing` LOD-0 columns, in their order: one
     /// call per face among them.
     fn grid_states_by_face(&self, samples: &[(CubeFace, [f64; 2])], spacing: i64) -> [(usize, Vec<OctaveState>); 3] {
+        // Most chunks lie within one face: their samples are the points,
+        // in order.
+        if let Some(&(face, _)) = samples.first()
+            && samples.iter().all(|&(f, _)| f == face)
+        {
+            let points: Vec<[f64; 2]> = samples.iter().map(|&(_, point)| point).collect();
+            return grid_states(self.layout.sphere(), face, self.gridded(), &points, spacing);
+        }
         let mut out: [(usize, Vec<OctaveState>); 3] =
             std::array::from_fn(|_| (0, vec![OctaveState::START; samples.len()]));
         let mut faces: Vec<CubeFace> = samples.iter().map(|&(face, _)| face).collect();
