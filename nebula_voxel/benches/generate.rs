@@ -99,6 +99,14 @@ fn mountain_chunk(planet: &ProceduralPlanet) -> ChunkKey {
     }
 }
 
+/// The middle one of the surface chunks of `key`'s column (`key` its
+/// lowest): in high mountains the lowest is mostly buried rock, the middle
+/// one cut by the slope, most of its rows part ground and part air.
+fn middle_surface_chunk(planet: &ProceduralPlanet, key: ChunkKey) -> ChunkKey {
+    let layers = planet.surface_chunk_layers(key.column()).expect("column is on the planet");
+    key.column().chunk((layers.start() + layers.end()) / 2)
+}
+
 /// Fills `keys` one after another, from an empty height cache each
 /// iteration: chunks whose columns were never filled.
 fn fill_cold(b: &mut criterion::Bencher<'_>, planet: &ProceduralPlanet, keys: &[ChunkKey], voxels: &mut ChunkVoxels) {
@@ -127,6 +135,7 @@ fn generate(c: &mut Criterion) {
         ("fill_lod", &planet, 5, surface_chunk(&planet, CubeFace::PosZ, 5, 5, 7)),
         ("fill_lod", &planet, 8, surface_chunk(&planet, CubeFace::PosZ, 8, 5, 7)),
         ("fill_mountains_lod", &planet, 0, mountain_chunk(&planet)),
+        ("fill_mountains_middle_lod", &planet, 0, middle_surface_chunk(&planet, mountain_chunk(&planet))),
         ("fill_flight_start_seabed_lod", &planet, 0, flight_start_chunk(&planet)),
         ("fill_lod_no_grids", &exact, 0, surface_chunk(&exact, CubeFace::PosZ, 0, 5, 7)),
         ("fill_mountains_lod_no_grids", &exact, 0, mountain_chunk(&exact)),
