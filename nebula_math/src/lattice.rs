@@ -13,6 +13,14 @@ use glam::{DVec3, I64Vec3, IVec3};
 use crate::error::{MathError, finite, positive};
 use crate::{CubeFace, SphereMap};
 
+/// Each face's normal, `u` and `v` axes as floats, by face index: read by
+/// every direction of a chunk's columns and grid nodes, which found them
+/// from the integer axes one call at a time (a tenth of a cold chunk's
+/// directions).
+static FLOAT_AXES: std::sync::LazyLock<[[DVec3; 3]; 6]> = std::sync::LazyLock::new(|| {
+    CubeFace::ALL.map(|face| [face.normal(), face.u_axis(), face.v_axis()].map(|axis| axis.as_dvec3()))
+});
+
 /// The largest lattice resolution (cells per face edge): 2³⁰, so cube
 /// coordinates and their doubles fit in `i32`/`i64` with room to spare.
 pub const MAX_RESOLUTION: u32 = 1 << 30;
@@ -228,8 +236,8 @@ impl Cubesphere {
     /// componentwise is warping `i` and `j`.
     #[must_use]
     pub fn direction_warped(&self, face: CubeFace, warped_i: f64, warped_j: f64) -> DVec3 {
-        (face.normal().as_dvec3() + face.u_axis().as_dvec3() * warped_i + face.v_axis().as_dvec3() * warped_j)
-            .normalize()
+        let [normal, u_axis, v_axis] = FLOAT_AXES[face as usize];
+        (normal + u_axis * warped_i + v_axis * warped_j).normalize()
     }
 
     /// The face and fractional in-face coordinates `(i, j)` whose
