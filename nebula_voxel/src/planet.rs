@@ -1429,7 +1429,7 @@ impl ProceduralPlanet {
         // no cave air can lie there, and a column with no tunnel over it
         // is made as any other (its `near` unset, it may also be lent to
         // a finer column, whose relief lies within this one's).
-        let caves_possible = self.column_relief(column).is_ok_and(|relief| relief.caves_near);
+        let caves_possible = self.caves_near(column);
         for (n, computed) in missing.into_iter().zip(self.columns_at(&directions, resumed, column.lod, caves_possible))
         {
             heights[n] = computed;
@@ -1702,6 +1702,35 @@ struct ColumnRelief {
 }
 
 impl ProceduralPlanet {
+    /// The ball over which [`Self::column_relief`] bounds the noise:
+    /// `column` and a voxel beyond (for the neighbouring voxel columns).
+    fn relief_ball(&self, column: ChunkColumn) -> (nebula_math::DVec3, f64) {
+        let span = self.layout.voxel_span(column.lod) as f64;
+        let chunk = f64::from(CHUNK_SIZE) * span;
+        let centre = ((f64::from(column.x) + 0.5) * chunk, (f64::from(column.y) + 0.5) * chunk);
+        self.patch_ball(column.face, centre, chunk / 2.0 + span)
+    }
+
+    /// [`ColumnRelief::caves_near`] of `column` (on the planet), sampling
+    /// H only where the noise's ranges leave it open: not where no cave is
+    /// made at its LOD or none can be near, nor where the ranges' lowest
+    /// ground already reaches the caves' sea margin (the relief's high end
+    /// lies over it), as in high mountains, whose chunks sampled five
+    /// columns' every octave for it.
+    fn caves_near(&self, column: ChunkColumn) -> bool {
+        if !self.caves.at_lod(column.lod) {
+            return false;
+        }
+        let ball = self.relief_ball(column);
+        if !self.caves.may_be_near(ball.0, ball.1) {
+            return false;
+        }
+        let span = self.layout.voxel_span(column.lod) as f64;
+        let low = self.heights(self.sum_ranges(ball)).0.max(self.lowest() / self.layer_height);
+        low + span >= crate::caves::SEA_MARGIN_LAYERS
+            || self.column_relief(column).is_ok_and(|relief| relief.caves_near)
+    }
+
     /// The noise behind [`VoxelSource::surface_bounds`] for `column`.
     fn column_relief(&self, column: ChunkColumn) -> Result<ColumnRelief, VoxelError> {
         self.layout.check_key(column.chunk(0))?;
@@ -1720,10 +1749,7 @@ impl ProceduralPlanet {
         // sit on every grid's nodes (`octave_grid.rs`), so no grid is
         // interpolated for them.
         let step = chunk / 2.0;
-        let centre = ((f64::from(column.x) + 0.5) * chunk, (f64::from(column.y) + 0.5) * chunk);
-        // The sums' ranges reach a voxel beyond the column, for the
-        // neighbouring voxel columns below.
-        let ball = self.patch_ball(column.face, centre, step + span);
+        let ball = self.relief_ball(column);
         let ranges = self.sum_ranges(ball);
         let slope = self.slope_within(ranges).min(self.max_slope);
         let margin = slope * step;
