@@ -592,7 +592,8 @@ impl Fractal {
     /// adds the octaves from there. The point's scaling and the octave's
     /// weight are reached by the same multiplications [`Self::step`]
     /// makes, so a sum resumed from the states a batch had after `octave`
-    /// octaves ends bit for bit where that batch does.
+    /// octaves ends bit for bit where that batch does. Where `octave` is
+    /// past the last, nothing is stepped and `points` may be empty.
     #[must_use]
     pub fn resume(&self, points: &[[f64; 3]], states: &[OctaveState], octave: usize) -> FractalBatch {
         let octave = octave.min(self.sources.len());

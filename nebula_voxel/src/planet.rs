@@ -837,12 +837,23 @@ impl ProceduralPlanet {
         } else {
             vec![ColumnCaves::NONE; directions.len()]
         };
-        let points = |scale: f64| -> Vec<[f64; 3]> { directions.iter().map(|d| (*d * scale).to_array()).collect() };
+        // A sum the grids finished (the continents at LOD 0) steps no
+        // more: its points are never read.
+        let points = |fractal: &Fractal, start: usize, scale: f64| -> Vec<[f64; 3]> {
+            if start >= fractal.octaves() {
+                return Vec::new();
+            }
+            directions.iter().map(|d| (*d * scale).to_array()).collect()
+        };
         let [continents, ridges, hills] = &resumed;
         let mut batches = [
-            self.continents.resume(&points(self.noise_scale), &continents.1, continents.0),
-            self.ridges.resume(&points(self.ridge_scale), &ridges.1, ridges.0),
-            self.hills.resume(&points(self.detail_scale), &hills.1, hills.0),
+            self.continents.resume(
+                &points(&self.continents, continents.0, self.noise_scale),
+                &continents.1,
+                continents.0,
+            ),
+            self.ridges.resume(&points(&self.ridges, ridges.0, self.ridge_scale), &ridges.1, ridges.0),
+            self.hills.resume(&points(&self.hills, hills.0, self.detail_scale), &hills.1, hills.0),
         ];
         let mut columns = vec![Column::UNKNOWN; directions.len()];
         let mut open: Vec<usize> = (0..directions.len()).collect();
