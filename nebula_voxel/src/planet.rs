@@ -1475,8 +1475,12 @@ impl ProceduralPlanet {
             let (lowest, highest) = columns
                 .iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(low, high), c| (low.min(c.height), high.max(c.height)));
-            let deep: Vec<Voxel> =
-                columns.iter().map(|c| if c.surface == Voxel::SEABED { Voxel::SEABED } else { Voxel::STONE }).collect();
+            let mut deep = [Voxel::STONE; PADDED_CHUNK_SIZE as usize];
+            for (voxel, column) in deep.iter_mut().zip(columns) {
+                if column.surface == Voxel::SEABED {
+                    *voxel = Voxel::SEABED;
+                }
+            }
             for y in 0..size {
                 let centre = self.layout.sample_layer(base_h + y as i64, key.lod);
                 let start = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
