@@ -289,9 +289,20 @@ fn meshing(c: &mut Criterion) {
         let uniform = ChunkLodContext::uniform(key.lod);
         let streamed = mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk");
         let tris = streamed.triangle_count();
-        eprintln!("{name}: streamed mesh {:016x}", mesh_fingerprint(&streamed));
+        let render = streamed.render_mesh();
+        let render_fingerprint = {
+            let mut hasher = std::hash::DefaultHasher::new();
+            let text = format!("{:?}{:?}{:?}", render.indices, render.skirt_edges, render.lowest_radius.to_bits());
+            std::hash::Hash::hash(&(text, bytemuck::cast_slice::<_, u8>(&render.vertices)), &mut hasher);
+            std::hash::Hasher::finish(&hasher)
+        };
+        eprintln!("{name}: streamed mesh {:016x}, render mesh {render_fingerprint:016x}", mesh_fingerprint(&streamed));
         group.bench_function(BenchmarkId::new(format!("{name}/streaming"), format!("tris={tris}")), |b| {
             b.iter(|| mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk"));
+        });
+        // What a streaming worker hands the renderer: the mesh in GPU form.
+        group.bench_function(BenchmarkId::new(format!("{name}/render_mesh"), format!("tris={tris}")), |b| {
+            b.iter(|| streamed.render_mesh());
         });
     }
     group.finish();

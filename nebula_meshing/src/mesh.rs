@@ -285,6 +285,7 @@ impl ChunkMesh {
         self.indices.extend([first, first + 1, first + 2]);
     }
 
+    #[inline]
     pub(crate) fn push_vertex(
         &mut self,
         world: DVec3,

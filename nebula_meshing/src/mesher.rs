@@ -99,6 +99,9 @@ pub struct ChunkMesher {
     vertex_slot: Vec<(u32, u32)>,
     /// Per lattice column (x, z): `(stamp, unit direction)`.
     column_direction: Vec<(u32, DVec3)>,
+    /// The radius of each of the chunk's lattice layers (local y), as
+    /// [`Cubesphere::position_on_column`] scales a direction by it.
+    layer_radius: [f64; POINTS],
     /// The chunk's columns on the cube and their coordinates' warps.
     column_warps: ColumnWarps,
     /// Per side-wall plane (x planes then z planes): `(stamp, unit normal
@@ -170,6 +173,7 @@ impl ChunkMesher {
             covered: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             vertex_slot: vec![(0, 0); POINTS * POINTS * POINTS * 6],
             column_direction: vec![(0, DVec3::ZERO); POINTS * POINTS],
+            layer_radius: [0.0; POINTS],
             column_warps: ColumnWarps::default(),
             wall_normal: vec![(0, DVec3::ZERO); 2 * POINTS],
             stamp: 0,
@@ -351,6 +355,7 @@ impl ChunkMesher {
         let faces = &RIGHT_HANDED_Y_UP_CONFIG.faces;
         self.next_stamp();
         self.column_warps.start(voxels.key(), layout)?;
+        self.start_layers(voxels.key(), layout);
         self.greedy.mesh(voxels);
         let mut groups = std::mem::take(&mut self.greedy.quads.groups);
         if self.plugs_for != Some(voxels.key()) {
@@ -819,26 +824,51 @@ impl ChunkMesher {
         })
     }
 
-    /// The canonical world position of local lattice point `local`: the
-    /// column's direction is computed once per chunk. (The position is
-    /// three multiplications from there: a table of positions by lattice
-    /// point, 1.2 MB, saved nothing measurable.)
-    fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> DVec3 {
+    /// Makes the radius of each of chunk `key`'s lattice layers.
+    fn start_layers(&mut self, key: ChunkKey, layout: &ChunkLayout) {
         let sphere = layout.sphere();
-        let column = local[0] as usize * POINTS + local[2] as usize;
-        if self.column_direction[column].0 != self.stamp {
-            let direction = self.column_warps.direction(sphere, self.stamp, local[0], local[2]);
-            debug_assert_eq!(
-                Ok(direction),
-                layout.column_point(key, i64::from(local[0]), i64::from(local[2])).map(|p| sphere.column_direction(p))
-            );
-            self.column_direction[column] = (self.stamp, direction);
-        }
         // The point's radial layer, exactly as `ChunkLayout::lattice_point`
         // counts it (the chunk key is valid, so it fits).
         let span = layout.voxel_span(key.lod);
-        let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
-        sphere.position_on_column(self.column_direction[column].1, layer as i32)
+        let first = i64::from(key.layer) * i64::from(CHUNK_SIZE);
+        for (local, radius) in self.layer_radius.iter_mut().enumerate() {
+            let layer = (first + local as i64) * span;
+            *radius = sphere.layer_radius(f64::from(layer as i32));
+        }
+    }
+
+    /// The unit direction of local lattice column `column` (`x · 33 + z`),
+    /// made once per chunk.
+    #[inline]
+    fn column_direction(&mut self, layout: &ChunkLayout, column: usize) -> DVec3 {
+        if self.column_direction[column].0 != self.stamp {
+            let (x, z) = ((column / POINTS) as i32, (column % POINTS) as i32);
+            let direction = self.column_warps.direction(layout.sphere(), self.stamp, x, z);
+            self.column_direction[column] = (self.stamp, direction);
+        }
+        self.column_direction[column].1
+    }
+
+    /// The canonical world position of local lattice point `local`: the
+    /// column's direction is made once per chunk, the layer's radius
+    /// too. (The position is a multiplication from there: a table of
+    /// positions by lattice point, 1.2 MB, saved nothing measurable.)
+    #[inline]
+    fn world_position(&mut self, key: ChunkKey, layout: &ChunkLayout, local: [i32; 3]) -> DVec3 {
+        let direction = self.column_direction(layout, local[0] as usize * POINTS + local[2] as usize);
+        debug_assert_eq!(
+            Ok(direction),
+            layout
+                .column_point(key, i64::from(local[0]), i64::from(local[2]))
+                .map(|p| layout.sphere().column_direction(p))
+        );
+        let world = direction * self.layer_radius[local[1] as usize];
+        debug_assert_eq!(world, {
+            let span = layout.voxel_span(key.lod);
+            let layer = (i64::from(key.layer) * i64::from(CHUNK_SIZE) + i64::from(local[1])) * span;
+            layout.sphere().position_on_column(direction, layer as i32)
+        });
+        world
     }
 
     /// The exact normal of a voxel face looking towards `side` at `local`:

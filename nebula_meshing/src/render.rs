@@ -64,7 +64,7 @@
 //! meshes (38.1 MB with skirts as triangles, 57.0 MB before that).
 
 use bytemuck::{Pod, Zeroable};
-use half::f16;
+use half::{f16, slice::HalfFloatSliceExt};
 use nebula_math::{DVec3, FaceDirection, Vec3, morph_factor};
 
 use crate::ChunkMesh;
@@ -117,7 +117,19 @@ pub fn encode_normal(n: Vec3) -> [i16; 2] {
     let n = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(f32::MIN_POSITIVE);
     let sign = |x: f32| if x >= 0.0 { 1.0 } else { -1.0 };
     let (u, v) = if n.z >= 0.0 { (n.x, n.y) } else { ((1.0 - n.y.abs()) * sign(n.x), (1.0 - n.x.abs()) * sign(n.y)) };
-    [(u.clamp(-1.0, 1.0) * 32767.0).round() as i16, (v.clamp(-1.0, 1.0) * 32767.0).round() as i16]
+    [round_to_i16(u.clamp(-1.0, 1.0) * 32767.0), round_to_i16(v.clamp(-1.0, 1.0) * 32767.0)]
+}
+
+/// `x.round() as i16` for |x| ≤ 32767 (NaN gives 0 too), without a call:
+/// x86-64's baseline has no rounding instruction, so `round` is libm's
+/// `roundf` (a fifth of making a render mesh). Truncation is a
+/// conversion, and x less its truncation is exact.
+fn round_to_i16(x: f32) -> i16 {
+    let truncated = x as i32;
+    let fraction = x - truncated as f32;
+    let rounded = (truncated + i32::from(fraction >= 0.5) - i32::from(fraction <= -0.5)) as i16;
+    debug_assert_eq!(rounded, x.round() as i16);
+    rounded
 }
 
 /// Decodes [`encode_normal`] (the shader's `decode_normal`).
@@ -390,11 +402,11 @@ impl ChunkMesh {
         // Skirt vertices (the lowered copies) are left out, the others
         // renumbered in order.
         let mut renumbered = vec![u32::MAX; self.vertices.len()];
-        let mut vertices = Vec::with_capacity(self.vertices.len());
+        let mut surface = Vec::with_capacity(self.vertices.len());
         for (i, number) in renumbered.iter_mut().enumerate() {
             if self.skirt_top(i).is_none() {
-                *number = vertices.len() as u32;
-                vertices.push(self.render_vertex(i));
+                *number = surface.len() as u32;
+                surface.push(i);
             }
         }
         let indices = self.indices[..self.surface_index_count].iter().map(|&i| renumbered[i as usize]).collect();
@@ -406,16 +418,17 @@ impl ChunkMesh {
             first..skirt_edges.len()
         });
         RenderMesh {
-            vertices,
+            vertices: self.render_vertices_of(&surface),
             indices,
             surface_side_ranges: self.surface_side_ranges(),
             skirt_edges,
             skirt_ranges,
-            lowest_radius: self.lowest_radius(),
+            lowest_radius: self.lowest_radius(&surface),
         }
     }
 
-    /// [`RenderMesh::lowest_radius`]: every drawn point lies on a triangle
+    /// [`RenderMesh::lowest_radius`] of the surface vertices `surface`:
+    /// every drawn point lies on a triangle
     /// between vertices that each lie between its position and its morph
     /// target, so in the convex hull of those points. All of them lie
     /// within angle ρ of their mean direction `c` and at least `r` from the
@@ -424,16 +437,45 @@ impl ChunkMesh {
     /// Less what the renderer's f32 and f16 can move a point: its offset
     /// from the morph target is an f16 in voxels of the chunk's LOD, a few
     /// at most (2⁻⁹ of a voxel apart there), the rest a centimetre.
-    fn lowest_radius(&self) -> f64 {
-        let surface = || (0..self.vertices.len()).filter(|&i| self.skirt_top(i).is_none());
-        let points = || surface().flat_map(|i| [self.world[i], self.morph_world[i]]);
-        let centre = points().fold(DVec3::ZERO, |sum, p| sum + p.normalize_or_zero()).normalize_or_zero();
+    fn lowest_radius(&self, surface: &[usize]) -> f64 {
+        // The points by coordinate, so that their lengths' square roots and
+        // divisions run two at a time (one at a time, through
+        // `DVec3::normalize_or_zero` and `length`, they were a third of
+        // making a render mesh); the arithmetic is glam's, bit for bit.
+        let count = 2 * surface.len();
+        let (mut xs, mut ys, mut zs) = (vec![0.0; count], vec![0.0; count], vec![0.0; count]);
+        for (k, &i) in surface.iter().enumerate() {
+            let (world, target) = (self.world[i], self.morph_world[i]);
+            (xs[2 * k], ys[2 * k], zs[2 * k]) = (world.x, world.y, world.z);
+            (xs[2 * k + 1], ys[2 * k + 1], zs[2 * k + 1]) = (target.x, target.y, target.z);
+        }
+        let coordinates = || xs.iter().zip(&ys).zip(&zs).map(|((&x, &y), &z)| (x, y, z));
+        let lengths: Vec<f64> = coordinates().map(|(x, y, z)| (x * x + y * y + z * z).sqrt()).collect();
+        let recips: Vec<f64> = lengths.iter().map(|length| 1.0 / length).collect();
+        // `DVec3::normalize_or_zero` of each point, summed in order.
+        let mut centre = DVec3::ZERO;
+        for ((x, y, z), &recip) in coordinates().zip(&recips) {
+            if recip.is_finite() && recip > 0.0 {
+                centre += DVec3::new(x * recip, y * recip, z * recip);
+            }
+        }
+        let centre = centre.normalize_or_zero();
         if centre == DVec3::ZERO {
             return f64::INFINITY;
         }
-        let (lowest, cos_spread) = points().fold((f64::INFINITY, 1.0_f64), |(lowest, cos), p| {
-            let r = p.length();
-            (lowest.min(r), cos.min(p.dot(centre) / r))
+        // The least radius and cosine; a minimum is the same in any order.
+        let cosines: Vec<f64> = coordinates()
+            .zip(&lengths)
+            .map(|((x, y, z), length)| (x * centre.x + y * centre.y + z * centre.z) / length)
+            .collect();
+        let lowest = lengths.iter().fold(f64::INFINITY, |lowest, &r| lowest.min(r));
+        let cos_spread = cosines.iter().fold(1.0_f64, |cos, &c| cos.min(c));
+        debug_assert_eq!((lowest, cos_spread), {
+            let points = surface.iter().flat_map(|&i| [self.world[i], self.morph_world[i]]);
+            points.fold((f64::INFINITY, 1.0_f64), |(lowest, cos), p| {
+                let r = p.length();
+                (lowest.min(r), cos.min(p.dot(centre) / r))
+            })
         });
         lowest * cos_spread.max(0.0) - 0.01 - self.layout.voxel_edge(self.key.lod) / 256.0
     }
@@ -442,31 +484,52 @@ impl ChunkMesh {
     /// [`ChunkMesh::vertices`], so [`ChunkMesh::indices`] index them.
     #[must_use]
     pub fn render_vertices(&self) -> Vec<RenderVertex> {
-        (0..self.vertices.len()).map(|i| self.render_vertex(i)).collect()
+        self.render_vertices_of(&(0..self.vertices.len()).collect::<Vec<_>>())
     }
 
-    /// Vertex `i` in GPU form.
-    fn render_vertex(&self, i: usize) -> RenderVertex {
+    /// Vertices `indices` in GPU form, in that order. Their f16 parts are
+    /// converted together: `half` converts a slice with the CPU's
+    /// conversion instructions where it has them, as it does one value
+    /// (f64 through f32), but without a call and a feature test per value
+    /// (those were a third of making a render mesh).
+    fn render_vertices_of(&self, indices: &[usize]) -> Vec<RenderVertex> {
         let lod = self.key.lod;
-        let v = self.vertices[i];
-        // A skirt vertex carries the vertex it hangs from; the renderer
-        // lowers it by the side's depth.
-        let from = self.skirt_top(i).map_or(i, |top| top as usize);
-        let (world, target) = (self.world[from], self.morph_world[from]);
-        let position_high = target.as_vec3();
-        let target_low = target - position_high.as_dvec3();
         // 2^-LOD is exact: the offset keeps its bits at every LOD.
-        let offset = (world - target) * f64::from(1_u32 << lod).recip();
-        RenderVertex {
-            position_high: position_high.to_array(),
-            offset: offset.to_array().map(f16::from_f64),
-            target_low: target_low.to_array().map(f16::from_f64),
-            normal: encode_normal(v.normal),
-            packed: u32::from(v.material)
-                | (u32::from(v.sky_light) << 8)
-                | (u32::from(v.flags & 0xff) << 16)
-                | (u32::from(lod) << OFFSET_LOD_SHIFT),
+        let scale = f64::from(1_u32 << lod).recip();
+        let mut vertices = Vec::with_capacity(indices.len());
+        // Per vertex: its offset, then its target's low part.
+        let mut low_parts = Vec::with_capacity(6 * indices.len());
+        for &i in indices {
+            let v = self.vertices[i];
+            // A skirt vertex carries the vertex it hangs from; the renderer
+            // lowers it by the side's depth.
+            let from = self.skirt_top(i).map_or(i, |top| top as usize);
+            let (world, target) = (self.world[from], self.morph_world[from]);
+            let position_high = target.as_vec3();
+            let target_low = target - position_high.as_dvec3();
+            let offset = (world - target) * scale;
+            low_parts.extend_from_slice(&[offset.x, offset.y, offset.z, target_low.x, target_low.y, target_low.z]);
+            vertices.push(RenderVertex {
+                position_high: position_high.to_array(),
+                offset: [f16::ZERO; 3],
+                target_low: [f16::ZERO; 3],
+                normal: encode_normal(v.normal),
+                packed: u32::from(v.material)
+                    | (u32::from(v.sky_light) << 8)
+                    | (u32::from(v.flags & 0xff) << 16)
+                    | (u32::from(lod) << OFFSET_LOD_SHIFT),
+            });
         }
+        let mut halves = vec![f16::ZERO; low_parts.len()];
+        halves.convert_from_f64_slice(&low_parts);
+        debug_assert!(
+            halves.iter().zip(&low_parts).all(|(&half, &low)| half.to_bits() == f16::from_f64(low).to_bits())
+        );
+        for (vertex, half) in vertices.iter_mut().zip(halves.chunks_exact(6)) {
+            vertex.offset = [half[0], half[1], half[2]];
+            vertex.target_low = [half[3], half[4], half[5]];
+        }
+        vertices
     }
 
     /// The skirt depths this mesh was generated with, as a [`ChunkDraw`]
@@ -482,4 +545,33 @@ impl ChunkMesh {
 #[must_use]
 pub fn side_index(side: FaceDirection) -> usize {
     FaceDirection::HORIZONTAL.iter().position(|&s| s == side).unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_to_i16;
+    use proptest::prelude::*;
+
+    /// Every half-way value an encoded normal can meet, and the floats
+    /// either side of it, round as `f32::round` does (away from zero).
+    #[test]
+    fn rounding_to_i16_takes_halves_away_from_zero_as_round_does() {
+        for k in -32767..32767 {
+            let half = k as f32 + 0.5;
+            let next = |x: f32, step: i32| f32::from_bits(x.to_bits().wrapping_add_signed(step));
+            for x in [k as f32, half, next(half, 1), next(half, -1), next(k as f32, 1), next(k as f32, -1)] {
+                if x.abs() <= 32767.0 {
+                    assert_eq!(round_to_i16(x), x.round() as i16, "{x}");
+                }
+            }
+        }
+        assert_eq!(round_to_i16(f32::NAN), 0);
+    }
+
+    proptest! {
+        #[test]
+        fn rounding_to_i16_is_round(x in -32767.0f32..=32767.0) {
+            prop_assert_eq!(round_to_i16(x), x.round() as i16);
+        }
+    }
 }

@@ -141,6 +141,7 @@ impl ChunkLayout {
     /// Lattice cells (and radial layers) per voxel at `lod`: 2^lod. LODs
     /// past 62 (never a planet's) saturate at 2^62 instead of overflowing.
     #[must_use]
+    #[inline]
     pub fn voxel_span(&self, lod: u8) -> i64 {
         1 << lod.min(62)
     }
