@@ -364,17 +364,43 @@ impl ChunkMesh {
     /// a neighbour's surface (or a crack) begins. Radial edges are left out:
     /// a skirt hanging from one would have no area.
     pub(crate) fn outline_edges(&self, side: FaceDirection) -> Vec<(u32, u32)> {
-        // Which vertices lie on the plane, looked up once each: most
-        // triangles have at most one there and no edge to count.
-        let on_plane: Vec<bool> = (0..self.vertices.len()).map(|i| self.is_on_plane(i, side)).collect();
-        // Every surface edge in the plane as (undirected lattice edge,
-        // directed edge), sorted, so that an edge one triangle alone uses
-        // is a run of one (a hash map of counts was a fifth of meshing a
-        // chunk for streaming, four sides a chunk).
-        let mut found: Vec<(LatticeEdge, (u32, u32))> = Vec::new();
+        let index = crate::side_index(side);
+        let wanted = std::array::from_fn(|k| k == index);
+        let [a, b, c, d] = self.outlines(wanted);
+        [a, b, c, d].into_iter().nth(index).unwrap_or_default()
+    }
+
+    /// [`ChunkMesh::outline_edges`] of each horizontal side `wanted` (index
+    /// as in [`FaceDirection::HORIZONTAL`]; empty for the others), in one
+    /// pass over the vertices and triangles (a pass a side was a tenth of
+    /// meshing a chunk for streaming).
+    pub(crate) fn outlines(&self, wanted: [bool; 4]) -> [Vec<(u32, u32)>; 4] {
+        let wanted_bits = (0..4).fold(0u8, |bits, k| bits | (u8::from(wanted[k]) << k));
+        // The boundary planes each vertex lies on, a bit a side, looked up
+        // once each: most triangles have at most one vertex on a plane and
+        // no edge to count.
+        let planes: Vec<u8> = self
+            .sources
+            .iter()
+            .map(|source| match source {
+                VertexSource::Surface { local, .. } => {
+                    FaceDirection::HORIZONTAL
+                        .iter()
+                        .enumerate()
+                        .fold(0, |bits, (k, &side)| bits | (u8::from(local[side.axis()] == side_plane(side)) << k))
+                        & wanted_bits
+                }
+                _ => 0,
+            })
+            .collect();
+        // Every surface edge in a plane as (undirected lattice edge,
+        // directed edge), by side, sorted, so that an edge one triangle
+        // alone uses is a run of one (a hash map of counts was a fifth of
+        // meshing a chunk for streaming, four sides a chunk).
+        let mut found: [Vec<(LatticeEdge, (u32, u32))>; 4] = Default::default();
         for triangle in self.indices[..self.surface_index_count].chunks_exact(3) {
-            let on = |k: usize| on_plane[triangle[k] as usize];
-            if u8::from(on(0)) + u8::from(on(1)) + u8::from(on(2)) < 2 {
+            let on = [0, 1, 2].map(|k| planes[triangle[k] as usize]);
+            if (on[0] & on[1]) | (on[1] & on[2]) | (on[2] & on[0]) == 0 {
                 continue;
             }
             let locals =
@@ -388,21 +414,27 @@ impl ChunkMesh {
             }
             for k in 0..3 {
                 let next = (k + 1) % 3;
-                // On the plane, so surface vertices with lattice points.
-                let (true, true, Some(la), Some(lb)) = (on(k), on(next), locals[k], locals[next]) else { continue };
+                // On a plane, so surface vertices with lattice points.
+                let (shared, Some(la), Some(lb)) = (on[k] & on[next], locals[k], locals[next]) else { continue };
                 let key = if la < lb { (la, lb) } else { (lb, la) };
-                found.push((key, (triangle[k], triangle[next])));
+                for (side, found) in found.iter_mut().enumerate() {
+                    if shared & (1 << side) != 0 {
+                        found.push((key, (triangle[k], triangle[next])));
+                    }
+                }
             }
         }
-        found.sort_unstable_by_key(|&(key, _)| key);
-        let mut edges = Vec::new();
-        for run in found.chunk_by(|a, b| a.0 == b.0) {
-            let ((la, lb), edge) = run[0];
-            if run.len() == 1 && !(la[0] == lb[0] && la[2] == lb[2]) {
-                edges.push(edge);
+        found.map(|mut found| {
+            found.sort_unstable_by_key(|&(key, _)| key);
+            let mut edges = Vec::new();
+            for run in found.chunk_by(|a, b| a.0 == b.0) {
+                let ((la, lb), edge) = run[0];
+                if run.len() == 1 && !(la[0] == lb[0] && la[2] == lb[2]) {
+                    edges.push(edge);
+                }
             }
-        }
-        edges
+            edges
+        })
     }
 
     /// The outline on `side`: the surface edges on the chunk's boundary

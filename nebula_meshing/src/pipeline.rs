@@ -6,8 +6,9 @@ use nebula_voxel::{ChunkKey, ChunkVoxels, VoxelSource};
 use rayon::prelude::*;
 
 use crate::mesh::ChunkMesh;
+use crate::seams::generate_skirts;
 use crate::stitch::{StitchedSide, stitch_padding};
-use crate::{ChunkMesher, MeshError, constrain_edge_vertices, generate_skirt, skirt_depth};
+use crate::{ChunkMesher, MeshError, constrain_edge_vertices, skirt_depth};
 
 /// Which seam passes run. Constraining and skirts are on by default;
 /// switching them off is for measuring what they fix. [`MeshOptions::STITCHED`]
@@ -176,23 +177,20 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
             constrain_edge_vertices(&mut mesh, side, lod_diff)?;
         }
     }
+    let center = mesh.planet_center();
     if options.draw_time_skirts {
-        let center = mesh.planet_center();
-        for side in FaceDirection::HORIZONTAL {
-            generate_skirt(&mut mesh, side, 0.0, &center)?;
-        }
+        generate_skirts(&mut mesh, [Some(0.0); 4], &center)?;
     } else if options.skirts {
-        for side in FaceDirection::HORIZONTAL {
+        let depths = FaceDirection::HORIZONTAL.map(|side| {
             let coarse_lod = match context.relation(side) {
-                NeighborLodRelation::Same => continue,
+                NeighborLodRelation::Same => return None,
                 NeighborLodRelation::HigherThanNeighbor { lod_diff } => key.lod + lod_diff,
                 // The finer neighbour is at most as coarse as this chunk.
                 NeighborLodRelation::LowerThanNeighbor => key.lod,
             };
-            let depth = skirt_depth(source, key.lod, coarse_lod) as f32;
-            let center = mesh.planet_center();
-            generate_skirt(&mut mesh, side, depth, &center)?;
-        }
+            Some(skirt_depth(source, key.lod, coarse_lod) as f32)
+        });
+        generate_skirts(&mut mesh, depths, &center)?;
     }
     Ok(mesh)
 }

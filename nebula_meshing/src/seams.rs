@@ -95,6 +95,38 @@ pub fn generate_skirt(
     skirt_depth: f32,
     planet_center: &Vec3,
 ) -> Result<(), MeshError> {
+    check_skirt(edge, skirt_depth, planet_center)?;
+    let outline = mesh.outline_edges(edge);
+    hang_skirt(mesh, edge, skirt_depth, planet_center, outline);
+    Ok(())
+}
+
+/// [`generate_skirt`] on each horizontal side given a depth in `depths`
+/// (index as in [`FaceDirection::HORIZONTAL`]), the four outlines found
+/// in one pass ([`ChunkMesh::outlines`]: skirts are not surface, so
+/// hanging one leaves the others' outlines as they were).
+///
+/// # Errors
+/// As [`generate_skirt`], before any skirt is hung.
+pub(crate) fn generate_skirts(
+    mesh: &mut ChunkMesh,
+    depths: [Option<f32>; 4],
+    planet_center: &Vec3,
+) -> Result<(), MeshError> {
+    let sides = || FaceDirection::HORIZONTAL.into_iter().zip(depths);
+    for (side, depth) in sides() {
+        depth.map_or(Ok(()), |depth| check_skirt(side, depth, planet_center))?;
+    }
+    for ((side, depth), outline) in sides().zip(mesh.outlines(depths.map(|depth| depth.is_some()))) {
+        if let Some(depth) = depth {
+            hang_skirt(mesh, side, depth, planet_center, outline);
+        }
+    }
+    Ok(())
+}
+
+/// [`generate_skirt`]'s errors.
+fn check_skirt(edge: FaceDirection, skirt_depth: f32, planet_center: &Vec3) -> Result<(), MeshError> {
     if !skirt_depth.is_finite() || skirt_depth < 0.0 {
         return Err(MeshError::BadSkirtDepth { depth: skirt_depth });
     }
@@ -104,6 +136,18 @@ pub fn generate_skirt(
     if edge.face_edge().is_none() {
         return Err(MeshError::RadialSide { side: edge });
     }
+    Ok(())
+}
+
+/// Hangs the skirt of a checked [`generate_skirt`] from `outline`, the
+/// mesh's outline edges on `edge`.
+fn hang_skirt(
+    mesh: &mut ChunkMesh,
+    edge: FaceDirection,
+    skirt_depth: f32,
+    planet_center: &Vec3,
+    outline: Vec<(u32, u32)>,
+) {
     let center = mesh.origin + planet_center.as_dvec3();
     let depth = f64::from(skirt_depth);
     mesh.skirt_depths[crate::side_index(edge)] = skirt_depth;
@@ -126,7 +170,7 @@ pub fn generate_skirt(
         })
     };
     let first = mesh.indices.len();
-    for (a, b) in mesh.outline_edges(edge) {
+    for (a, b) in outline {
         let lows = [bottom_of(mesh, a), bottom_of(mesh, b)];
         // The surface runs a → b; the skirt continues it, so it runs b → a.
         // Each triangle starts at a skirt vertex (same winding, rotated) so
@@ -135,7 +179,6 @@ pub fn generate_skirt(
         mesh.skirt_triangles += 2;
     }
     mesh.skirt_ranges[crate::side_index(edge)] = first..mesh.indices.len();
-    Ok(())
 }
 
 /// The outline edges `[a, b]` that the skirt triangles `indices` (one
