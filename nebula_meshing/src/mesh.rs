@@ -285,7 +285,7 @@ impl ChunkMesh {
         self.indices.extend([first, first + 1, first + 2]);
     }
 
-    #[inline]
+    #[inline(always)]
     pub(crate) fn push_vertex(
         &mut self,
         world: DVec3,
