@@ -638,11 +638,16 @@ impl ChunkMesher {
         let (mut index_a, mut index_b) = (std::mem::take(&mut self.index_a), std::mem::take(&mut self.index_b));
         index_a.clear();
         index_b.clear();
-        for (chain, indices) in [(&chain_a, &mut index_a), (&chain_b, &mut index_b)] {
-            for &point in chain.iter() {
-                indices.push(self.vertex(point, VertexKind { side, material, on_face: true }, voxels, layout, mesh));
-            }
+        let kind = VertexKind { side, material, on_face: true };
+        for &point in &chain_a {
+            index_a.push(self.vertex(point, kind, voxels, layout, mesh));
         }
+        // Chain B shares its ends, tl and br, with chain A.
+        index_b.push(index_a[0]);
+        for &point in &chain_b[1..chain_b.len() - 1] {
+            index_b.push(self.vertex(point, kind, voxels, layout, mesh));
+        }
+        index_b.extend(index_a.last().copied());
         // Lattice space (x = u, y = radial, z = v) is left-handed in the
         // world, so a triangle facing `normal` counter-clockwise in the
         // world is clockwise here. A step along chain A, (a, a', b), and
