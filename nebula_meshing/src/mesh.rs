@@ -366,8 +366,7 @@ impl ChunkMesh {
     pub(crate) fn outline_edges(&self, side: FaceDirection) -> Vec<(u32, u32)> {
         let index = crate::side_index(side);
         let wanted = std::array::from_fn(|k| k == index);
-        let [a, b, c, d] = self.outlines(wanted);
-        [a, b, c, d].into_iter().nth(index).unwrap_or_default()
+        self.outlines(wanted).into_iter().nth(index).unwrap_or_default()
     }
 
     /// [`ChunkMesh::outline_edges`] of each horizontal side `wanted` (index

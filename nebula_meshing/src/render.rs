@@ -122,7 +122,7 @@ pub fn encode_normal(n: Vec3) -> [i16; 2] {
 
 /// `x.round() as i16` for |x| ≤ 32767 (NaN gives 0 too), without a call:
 /// x86-64's baseline has no rounding instruction, so `round` is libm's
-/// `roundf` (a fifth of making a render mesh). Truncation is a
+/// `roundf` (an eighth of making a render mesh). Truncation is a
 /// conversion, and x less its truncation is exact.
 fn round_to_i16(x: f32) -> i16 {
     let truncated = x as i32;
@@ -440,7 +440,7 @@ impl ChunkMesh {
     fn lowest_radius(&self, surface: &[usize]) -> f64 {
         // The points by coordinate, so that their lengths' square roots and
         // divisions run two at a time (one at a time, through
-        // `DVec3::normalize_or_zero` and `length`, they were a third of
+        // `DVec3::normalize_or_zero` and `length`, they were a fifth of
         // making a render mesh); the arithmetic is glam's, bit for bit.
         let count = 2 * surface.len();
         let (mut xs, mut ys, mut zs) = (vec![0.0; count], vec![0.0; count], vec![0.0; count]);
@@ -491,7 +491,7 @@ impl ChunkMesh {
     /// converted together: `half` converts a slice with the CPU's
     /// conversion instructions where it has them, as it does one value
     /// (f64 through f32), but without a call and a feature test per value
-    /// (those were a third of making a render mesh).
+    /// (those were a quarter of making a render mesh).
     fn render_vertices_of(&self, indices: &[usize]) -> Vec<RenderVertex> {
         let lod = self.key.lod;
         // 2^-LOD is exact: the offset keeps its bits at every LOD.
