@@ -40,7 +40,7 @@ use block_mesh::{GreedyQuadsBuffer, RIGHT_HANDED_Y_UP_CONFIG, UnitQuadBuffer, gr
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nebula_meshing::{
     ChunkLodContext, ChunkMesh, ChunkMeshBuffer, ChunkMesher, FaceDirection, GreedyQuads, MeshOptions,
-    NeighborLodRelation, mesh_chunk, mesh_chunks,
+    NeighborLodRelation, RenderMesh, mesh_chunk, mesh_chunks,
 };
 use nebula_voxel::{
     ChunkColumn, ChunkKey, ChunkLayout, ChunkVoxels, CubeFace, PADDED_CHUNK_VOLUME, PaddedChunkShape, PlanetSettings,
@@ -168,6 +168,15 @@ fn mesh_fingerprint(mesh: &ChunkMesh) -> u64 {
     std::hash::Hasher::finish(&hasher)
 }
 
+/// The same for a mesh in GPU form: its vertices' bytes, indices, skirt
+/// edges and lowest radius.
+fn render_fingerprint(render: &RenderMesh) -> u64 {
+    let mut hasher = std::hash::DefaultHasher::new();
+    let text = format!("{:?}{:?}{:?}", render.indices, render.skirt_edges, render.lowest_radius.to_bits());
+    std::hash::Hash::hash(&(text, bytemuck::cast_slice::<_, u8>(&render.vertices)), &mut hasher);
+    std::hash::Hasher::finish(&hasher)
+}
+
 fn noisy_chunk(key: ChunkKey) -> ChunkVoxels {
     let mut state = 0x2545_F491_4F6C_DD1D_u64;
     let voxels = (0..PADDED_CHUNK_VOLUME)
@@ -289,14 +298,11 @@ fn meshing(c: &mut Criterion) {
         let uniform = ChunkLodContext::uniform(key.lod);
         let streamed = mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk");
         let tris = streamed.triangle_count();
-        let render = streamed.render_mesh();
-        let render_fingerprint = {
-            let mut hasher = std::hash::DefaultHasher::new();
-            let text = format!("{:?}{:?}{:?}", render.indices, render.skirt_edges, render.lowest_radius.to_bits());
-            std::hash::Hash::hash(&(text, bytemuck::cast_slice::<_, u8>(&render.vertices)), &mut hasher);
-            std::hash::Hasher::finish(&hasher)
-        };
-        eprintln!("{name}: streamed mesh {:016x}, render mesh {render_fingerprint:016x}", mesh_fingerprint(&streamed));
+        eprintln!(
+            "{name}: streamed mesh {:016x}, render mesh {:016x}",
+            mesh_fingerprint(&streamed),
+            render_fingerprint(&streamed.render_mesh())
+        );
         group.bench_function(BenchmarkId::new(format!("{name}/streaming"), format!("tris={tris}")), |b| {
             b.iter(|| mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk"));
         });
