@@ -725,6 +725,8 @@ struct JobState<S, H> {
     /// Taken by a worker and not collected yet (running, or finished and
     /// waiting in the channel), with the tier they were taken at.
     running: HashMap<ChunkKey, Tier>,
+    /// The columns workers are meshing a chunk of now.
+    in_hand: ColumnsInHand,
     /// The voxels jobs read and their generation: a worker takes them with
     /// each job, so an edit reaches the next job, not the next worker.
     voxels: Option<(Arc<S>, u64)>,
@@ -740,6 +742,58 @@ struct JobState<S, H> {
     keep_cpu: bool,
     /// No job is started while set ([`Streamer::set_meshing_paused`]).
     paused: bool,
+}
+
+/// Jobs [`ColumnsInHand::take`] looks past for one whose column no
+/// worker has in hand.
+const JOBS_LOOKED_PAST: usize = 8;
+
+/// The columns workers are meshing a chunk of now, with how many.
+#[derive(Debug, Default)]
+struct ColumnsInHand(HashMap<ChunkColumn, usize>);
+
+impl ColumnsInHand {
+    /// The top job of `queue`, passing over (up to [`JOBS_LOOKED_PAST`])
+    /// those whose column a worker is meshing a chunk of now, which stay
+    /// queued; its column is in hand until [`Self::put_down`]. A column's
+    /// chunks share a priority and come out of the queue together, and a
+    /// voxel source computes what they share once (the procedural
+    /// planet's column heights, most of a chunk's cost): taken side by
+    /// side, the second waits for the first's heights (before the planet
+    /// waited, it computed them again: 27 % of the columns computed for a
+    /// hillside view), taken after it, it finds them made. Where every job
+    /// looked at is of a column in hand, the top one.
+    fn take(&mut self, queue: &mut BinaryHeap<Job>) -> Option<Job> {
+        let mut passed = Vec::new();
+        let mut free = None;
+        while passed.len() <= JOBS_LOOKED_PAST {
+            let Some(job) = queue.pop() else { break };
+            if self.0.contains_key(&job.key.column()) {
+                passed.push(job);
+            } else {
+                free = Some(job);
+                break;
+            }
+        }
+        let job = match free {
+            Some(job) => job,
+            None if passed.is_empty() => return None,
+            None => passed.remove(0),
+        };
+        queue.extend(passed);
+        *self.0.entry(job.key.column()).or_default() += 1;
+        Some(job)
+    }
+
+    /// A worker is done with a chunk of `column`.
+    fn put_down(&mut self, column: ChunkColumn) {
+        if let Some(count) = self.0.get_mut(&column) {
+            *count -= 1;
+            if *count == 0 {
+                self.0.remove(&column);
+            }
+        }
+    }
 }
 
 struct MeshResult<H> {
@@ -1133,6 +1187,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 state: Arc::new(Mutex::new(JobState {
                     queue: BinaryHeap::new(),
                     running: HashMap::default(),
+                    in_hand: ColumnsInHand::default(),
                     voxels: None,
                     spent: Vec::new(),
                     uploader: None,
@@ -2216,8 +2271,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 
     /// Starts workers until every meshing thread has one or the queue is
-    /// empty. A worker takes the top job, meshes it and sends it back,
-    /// until the queue is empty; nothing ever waits for it.
+    /// empty. A worker takes the top job ([`ColumnsInHand::take`]), meshes it
+    /// and sends it back, until the queue is empty; nothing ever waits for
+    /// it.
     fn spawn_workers(&self) {
         let meshing = &self.meshing;
         loop {
@@ -2229,18 +2285,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             meshing.workers.fetch_add(1, Ordering::AcqRel);
             let (state, workers, sender) = (meshing.state.clone(), meshing.workers.clone(), meshing.sender.clone());
             meshing.pool.spawn(move || {
+                // The column of the chunk this worker meshed last.
+                let mut finished = None;
                 loop {
                     let mut spent = Vec::new();
                     let job = state.lock().ok().and_then(|mut s| {
+                        if let Some(column) = finished.take() {
+                            s.in_hand.put_down(column);
+                        }
                         spent = std::mem::take(&mut s.spent);
                         let voxels = s.voxels.clone().filter(|_| !s.paused)?;
-                        let job = s.queue.pop()?;
+                        let JobState { queue, in_hand, .. } = &mut *s;
+                        let job = in_hand.take(queue)?;
                         s.running.insert(job.key, job.tier);
                         Some((job, voxels, s.uploader.clone(), s.keep_cpu))
                     });
                     // Freed here, outside the lock.
                     drop(spent);
                     let Some((job, (voxels, generation), uploader, keep_cpu)) = job else { break };
+                    finished = Some(job.key.column());
                     let start = Instant::now();
                     // A panic in the voxel source (a game's own) or the
                     // mesher fails this chunk, not the game.
@@ -2662,4 +2725,44 @@ fn predict(previous: &Camera, current: &Camera, last_step: f64) -> (Camera, Cull
         aspect: current.aspect,
     };
     (next, CullMargin { angle: 3f64.to_radians(), distance: (0.5 * step.length()).max(1.0) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job(priority: f64, x: u32, layer: i32) -> Job {
+        Job {
+            tier: Tier::View,
+            priority,
+            key: ChunkKey { face: CubeFace::PosZ, lod: 0, x, y: 0, layer },
+            seams: SeamStrategy::default(),
+            relations: SAME_ALL_ROUND,
+        }
+    }
+
+    #[test]
+    fn a_worker_passes_over_the_chunks_of_a_column_in_hand() {
+        // Column 1's two layers first, then column 2's.
+        let mut queue: BinaryHeap<Job> = [job(3.0, 1, 0), job(3.0, 1, 1), job(2.0, 2, 0)].into_iter().collect();
+        let mut in_hand = ColumnsInHand::default();
+        let first = in_hand.take(&mut queue).expect("a job");
+        assert_eq!(first.key.column(), job(3.0, 1, 0).key.column());
+        // The second worker leaves column 1's other layer for later.
+        let second = in_hand.take(&mut queue).expect("a job");
+        assert_eq!(second.key, job(2.0, 2, 0).key);
+        assert_eq!(queue.len(), 1, "column 1's other layer stays queued");
+        // Every job left is of a column in hand: the top one is taken.
+        let third = in_hand.take(&mut queue).expect("a job");
+        assert_eq!(third.key.column(), first.key.column());
+        assert!(in_hand.take(&mut queue).is_none());
+        // Put down, a column is free again.
+        for taken in [first, second, third] {
+            in_hand.put_down(taken.key.column());
+        }
+        assert!(in_hand.0.is_empty());
+        queue.push(job(1.0, 1, 2));
+        queue.push(job(0.5, 3, 0));
+        assert_eq!(in_hand.take(&mut queue).map(|job| job.key.x), Some(1), "column 1 put down: by priority");
+    }
 }
