@@ -755,7 +755,8 @@ struct ColumnsInHand(HashMap<ChunkColumn, usize>);
 impl ColumnsInHand {
     /// The top job of `queue`, passing over (up to [`JOBS_LOOKED_PAST`])
     /// those whose column a worker is meshing a chunk of now, which stay
-    /// queued; its column is in hand until [`Self::put_down`]. A column's
+    /// queued (for a job of the same tier only); its column is in hand
+    /// until [`Self::put_down`]. A column's
     /// chunks share a priority and come out of the queue together, and a
     /// voxel source computes what they share once (the procedural
     /// planet's column heights, most of a chunk's cost): taken side by
@@ -764,10 +765,17 @@ impl ColumnsInHand {
     /// hillside view), taken after it, it finds them made. Where every job
     /// looked at is of a column in hand, the top one.
     fn take(&mut self, queue: &mut BinaryHeap<Job>) -> Option<Job> {
-        let mut passed = Vec::new();
+        let mut passed: Vec<Job> = Vec::new();
         let mut free = None;
         while passed.len() <= JOBS_LOOKED_PAST {
             let Some(job) = queue.pop() else { break };
+            // Never a lower tier's instead: prefetching must not hold up
+            // the view (the view's last chunks are often a column's
+            // layers, one in hand).
+            if passed.first().is_some_and(|top| job.tier < top.tier) {
+                queue.push(job);
+                break;
+            }
             if self.0.contains_key(&job.key.column()) {
                 passed.push(job);
             } else {
@@ -2764,5 +2772,16 @@ mod tests {
         queue.push(job(1.0, 1, 2));
         queue.push(job(0.5, 3, 0));
         assert_eq!(in_hand.take(&mut queue).map(|job| job.key.x), Some(1), "column 1 put down: by priority");
+    }
+
+    #[test]
+    fn a_view_chunk_of_a_column_in_hand_goes_before_prefetching() {
+        let prefetch = Job { tier: Tier::Prefetch, ..job(9.0, 4, 0) };
+        let mut queue: BinaryHeap<Job> = [job(1.0, 1, 0), job(1.0, 1, 1), prefetch].into_iter().collect();
+        let mut in_hand = ColumnsInHand::default();
+        in_hand.take(&mut queue).expect("a job");
+        let second = in_hand.take(&mut queue).expect("a job");
+        assert_eq!(second.tier, Tier::View, "the view's last chunk, not prefetching");
+        assert_eq!(queue.pop().map(|job| job.tier), Some(Tier::Prefetch));
     }
 }
