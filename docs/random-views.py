@@ -86,7 +86,8 @@ def main():
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
         with open(name + ".json") as file:
             report = json.load(file)
-        culled = report.get("occlusion_culling", {}).get("rasterised_triangles_per_pixel", float("nan"))
+        # Occlusion culling's figures where it ran (with a GPU, or --occlusion-culling on).
+        culled = (report.get("occlusion_culling") or {}).get("rasterised_triangles_per_pixel", report["triangles_per_pixel"])
         print(f"view {shown}: ground {ground - RADIUS:.0f} m, settled {report['settled_ms']:.0f} ms, "
               f"first frame {report['first_frame_ms']:.0f} ms, {report['chunks']} chunks, "
               f"{report['triangles_per_pixel']:.2f} triangles/px listed, {culled:.2f} rasterised, "

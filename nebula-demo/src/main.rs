@@ -153,9 +153,10 @@ struct Args {
     #[arg(long, value_enum, default_value_t = Switch::Auto)]
     msaa: Switch,
     /// Leave out on the GPU the chunks nearer ones hide (the same picture
-    /// from fewer triangles rasterised): `auto` and `on` are on wherever
-    /// the device can (indirect draws, compute); `off` draws the whole
-    /// list (for comparing).
+    /// from fewer triangles rasterised): `auto` is on with a GPU and off on
+    /// a CPU adapter such as lavapipe, where it draws no faster and holds
+    /// more memory; `on` is on wherever the device can (indirect draws,
+    /// compute); `off` draws the whole list (for comparing).
     #[arg(long, value_enum, default_value_t = Switch::Auto)]
     occlusion_culling: Switch,
     /// Make the LOD tree's update and cull ahead on a thread of their own
