@@ -756,14 +756,15 @@ impl ColumnsInHand {
     /// The top job of `queue`, passing over (up to [`JOBS_LOOKED_PAST`])
     /// those whose column a worker is meshing a chunk of now, which stay
     /// queued (for a job of the same tier only); its column is in hand
-    /// until [`Self::put_down`]. A column's
-    /// chunks share a priority and come out of the queue together, and a
-    /// voxel source computes what they share once (the procedural
-    /// planet's column heights, most of a chunk's cost): taken side by
-    /// side, the second waits for the first's heights (before the planet
-    /// waited, it computed them again: 27 % of the columns computed for a
-    /// hillside view), taken after it, it finds them made. Where every job
-    /// looked at is of a column in hand, the top one.
+    /// until [`Self::put_down`]. Where every job looked at is of a column
+    /// in hand, the top one.
+    ///
+    /// Why: a column's chunks share a priority and come out of the queue
+    /// together, and a voxel source computes what they share once (the
+    /// procedural planet's column heights, most of a chunk's cost). Taken
+    /// side by side, the second waits for the first's heights (before the
+    /// planet waited, it computed them again: 27 % of the columns computed
+    /// for a hillside view); taken after it, it finds them made.
     fn take(&mut self, queue: &mut BinaryHeap<Job>) -> Option<Job> {
         let mut passed: Vec<Job> = Vec::new();
         let mut free = None;
