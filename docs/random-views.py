@@ -22,6 +22,7 @@ import math
 import os
 import random
 import subprocess
+import sys
 import tempfile
 
 RADIUS = 6_371_000.0
@@ -60,8 +61,10 @@ def main():
     parser.add_argument("--size", default="1280x720")
     parser.add_argument("--min-ground", type=float, default=0.0, help="metres: 0 keeps land only")
     parser.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "nebula-random-views"))
-    parser.add_argument("extra", nargs="*", help="demo flags, after --")
-    args = parser.parse_args()
+    # Demo flags after `--` go to every run as they are.
+    argv = sys.argv[1:]
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    args = parser.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
     os.makedirs(args.out, exist_ok=True)
     world = os.path.join(args.out, "pick.redb")
     rng = random.Random(args.seed)
@@ -82,7 +85,7 @@ def main():
         pose = ["--camera-pos=" + ",".join(f"{c:.3f}" for c in eye), "--look-at=" + ",".join(f"{c:.3f}" for c in look)]
         name = os.path.join(args.out, f"view-{args.seed}-{shown}")
         subprocess.run([args.demo, "--planet", "earth", "--headless", "--size", args.size, *pose,
-                        "--screenshot", name + ".png", "--report", name + ".json", *args.extra],
+                        "--screenshot", name + ".png", "--report", name + ".json", *extra],
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
         with open(name + ".json") as file:
             report = json.load(file)
