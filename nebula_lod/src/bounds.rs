@@ -42,21 +42,8 @@ impl NodeBounds {
         let size = f64::from(CHUNK_SIZE) * layout.voxel_span(column.lod) as f64;
         let (i0, j0) = (f64::from(column.x) * size, f64::from(column.y) * size);
         // The 3 × 3 grid's directions, once each: `grid[a][b]` at
-        // `(a / 2, b / 2)` of the patch, from one warp (a `tan`) per row
-        // and per column (bit for bit `Cubesphere::direction`; its two a
-        // point were a tenth of building a 12° lens's tree).
-        let warp = |c0: f64| -> [f64; 3] { std::array::from_fn(|k| sphere.warp(c0 + k as f64 * 0.5 * size)) };
-        let (warp_i, warp_j) = (warp(i0), warp(j0));
-        let grid: [[DVec3; 3]; 3] = std::array::from_fn(|a| {
-            std::array::from_fn(|b| {
-                let direction = sphere.direction_warped(column.face, warp_i[a], warp_j[b]);
-                debug_assert_eq!(
-                    direction,
-                    sphere.direction(column.face, i0 + a as f64 * 0.5 * size, j0 + b as f64 * 0.5 * size)
-                );
-                direction
-            })
-        });
+        // `(a / 2, b / 2)` of the patch.
+        let grid = sphere.patch_directions(column.face, i0, j0, size);
         let center_direction = grid[1][1];
         let (mut min, mut max) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         // Largest angles as smallest cosines: one `acos` each at the end.

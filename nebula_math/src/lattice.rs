@@ -240,6 +240,19 @@ impl Cubesphere {
         (normal + u_axis * warped_i + v_axis * warped_j).normalize()
     }
 
+    /// The directions of the square patch of `face` from `(i0, j0)` with
+    /// side `size`, at its corners, edge midpoints and centre:
+    /// `grid[a][b]` at `(i0 + a·size/2, j0 + b·size/2)`, bit for bit
+    /// [`Cubesphere::direction`] there, from one warp (a `tan`) per row and
+    /// per column (building a 12° lens's LOD tree spent a tenth of its
+    /// time in two a point).
+    #[must_use]
+    pub fn patch_directions(&self, face: CubeFace, i0: f64, j0: f64, size: f64) -> [[DVec3; 3]; 3] {
+        let warps = |c0: f64| -> [f64; 3] { std::array::from_fn(|k| self.warp(c0 + k as f64 * 0.5 * size)) };
+        let (warp_i, warp_j) = (warps(i0), warps(j0));
+        std::array::from_fn(|a| std::array::from_fn(|b| self.direction_warped(face, warp_i[a], warp_j[b])))
+    }
+
     /// The face and fractional in-face coordinates `(i, j)` whose
     /// [`Cubesphere::direction`] is closest to `world` (the inverse map).
     ///

@@ -228,6 +228,28 @@ proptest! {
         prop_assert_eq!(warped.to_array().map(f64::to_bits), expected.to_array().map(f64::to_bits));
     }
 
+    /// A patch's 3 × 3 grid of directions (one warp per row and column) is
+    /// `direction` at each of its points, bit for bit: chunk patches of any
+    /// LOD (a power-of-two side at a multiple of it) on Earth.
+    #[test]
+    fn patch_directions_are_the_points_directions(
+        face in any_face(), lod in 0u32..=18, a in 0.0f64..1.0, b in 0.0f64..1.0, equi_angular in any::<bool>(),
+    ) {
+        let n = 1u32 << 23;
+        let map = if equi_angular { SphereMap::EquiAngular } else { SphereMap::Gnomonic };
+        let sphere = Cubesphere::new(6_371_000.0, n, 1.0, map).unwrap();
+        let size = f64::from(32u32 << lod);
+        let patches = f64::from(n) / size;
+        let (i0, j0) = ((a * patches).floor() * size, (b * patches).floor() * size);
+        let grid = sphere.patch_directions(face, i0, j0, size);
+        for (x, row) in grid.iter().enumerate() {
+            for (y, direction) in row.iter().enumerate() {
+                let expected = sphere.direction(face, i0 + x as f64 * 0.5 * size, j0 + y as f64 * 0.5 * size);
+                prop_assert_eq!(direction.to_array().map(f64::to_bits), expected.to_array().map(f64::to_bits));
+            }
+        }
+    }
+
     /// A lattice point on a face edge gives the bit-identical position from
     /// both faces, at any resolution and layer.
     #[test]

@@ -19,12 +19,11 @@
 //!   the surface, lowered as deep as the frame needs. The fragment shader
 //!   lights materials, or shows a [`DebugView`].
 //! - [`PlanetRenderer::render`] culls on the GPU what nearer chunks hide
-//!   (two-phase occlusion culling against a depth pyramid, `cull`; on
-//!   by default where a GPU draws, [`PlanetRenderer::set_occlusion_culling`]
-//!   sets it): the
-//!   chunks visible the frame before are drawn, their depth reduced, and
-//!   the rest drawn where their boxes may show. The same picture from
-//!   fewer triangles ([`PlanetRenderer::read_culling_figures`] says how
+//!   (two-phase occlusion culling against a depth pyramid, `cull`; on by
+//!   default where a GPU draws, [`PlanetRenderer::set_occlusion_culling`]
+//!   sets it): the chunks visible the frame before are drawn, their depth
+//!   reduced, and the rest drawn where their boxes may show. The same
+//!   picture from fewer triangles ([`PlanetRenderer::read_culling_figures`] says how
 //!   many); [`PlanetRenderer::terrain_pass`] with
 //!   [`PlanetRenderer::draw_terrain`] draws the whole list in one pass.
 //! - [`PlanetRenderer::draw_atmosphere`] draws sky, sea and haze over the

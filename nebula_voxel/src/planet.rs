@@ -1338,19 +1338,10 @@ impl ProceduralPlanet {
         let sphere = self.layout.sphere();
         let size = f64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod) as f64;
         let (i0, j0) = (f64::from(column.x) * size, f64::from(column.y) * size);
-        // The corners' and the centre's directions from one warp (a `tan`)
-        // per coordinate (bit for bit `Cubesphere::direction`).
-        let warp = |c0: f64| [0.0, 0.5, 1.0].map(|a| sphere.warp(c0 + a * size));
-        let (warp_i, warp_j) = (warp(i0), warp(j0));
-        let mut polewards = 0.0_f64;
-        for (a, b) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)] {
-            let direction = sphere.direction_warped(column.face, warp_i[a], warp_j[b]);
-            debug_assert_eq!(direction, {
-                let at = |k: usize| k as f64 * 0.5;
-                sphere.direction(column.face, i0 + at(a) * size, j0 + at(b) * size)
-            });
-            polewards = polewards.max(direction.z.abs());
-        }
+        let grid = sphere.patch_directions(column.face, i0, j0, size);
+        let polewards = [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)]
+            .into_iter()
+            .fold(0.0_f64, |polewards, (a, b)| polewards.max(grid[a][b].z.abs()));
         let reach = size * self.layer_height / self.settings.radius * 2.0;
         self.snow_line((polewards + reach).min(1.0))
     }
