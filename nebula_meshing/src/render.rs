@@ -428,56 +428,36 @@ impl ChunkMesh {
     }
 
     /// [`RenderMesh::lowest_radius`] of the surface vertices `surface`:
-    /// every drawn point lies on a triangle
-    /// between vertices that each lie between its position and its morph
-    /// target, so in the convex hull of those points. All of them lie
-    /// within angle ρ of their mean direction `c` and at least `r` from the
-    /// centre, so `p · c ≥ r cos ρ` for each, and for the hull too: no
-    /// drawn point is nearer the centre than `r cos ρ` (the chord's sag).
-    /// Less what the renderer's f32 and f16 can move a point: its offset
-    /// from the morph target is an f16 in voxels of the chunk's LOD, a few
-    /// at most (2⁻⁹ of a voxel apart there), the rest a centimetre.
+    /// every drawn point lies on a triangle between vertices that each lie
+    /// between its position and its morph target, so in the convex hull of
+    /// those points. Along any unit direction `c` the hull reaches no lower
+    /// than its lowest point, `min p · c`, and a point `q` is at least
+    /// `q · c` from the centre: no drawn point is nearer the centre than
+    /// `min p · c` (the chords' sag taken off), with `c` the direction of
+    /// the points' sum. Less what the renderer's f32 and f16 can move a
+    /// point: its offset from the morph target is an f16 in voxels of the
+    /// chunk's LOD, a few at most (2⁻⁹ of a voxel apart there), the rest a
+    /// centimetre. A dot product a point: the least length times the least
+    /// cosine (a square root and two divisions a point, and a lower bound)
+    /// was a third of making a render mesh.
     fn lowest_radius(&self, surface: &[usize]) -> f64 {
-        // The points by coordinate, so that their lengths' square roots and
-        // divisions run two at a time (one at a time, through
-        // `DVec3::normalize_or_zero` and `length`, they were a fifth of
-        // making a render mesh); the arithmetic is glam's, bit for bit.
-        let count = 2 * surface.len();
-        let (mut xs, mut ys, mut zs) = (vec![0.0; count], vec![0.0; count], vec![0.0; count]);
-        for (k, &i) in surface.iter().enumerate() {
-            let (world, target) = (self.world[i], self.morph_world[i]);
-            (xs[2 * k], ys[2 * k], zs[2 * k]) = (world.x, world.y, world.z);
-            (xs[2 * k + 1], ys[2 * k + 1], zs[2 * k + 1]) = (target.x, target.y, target.z);
+        let mut sum = DVec3::ZERO;
+        for &i in surface {
+            sum += self.world[i] + self.morph_world[i];
         }
-        let coordinates = || xs.iter().zip(&ys).zip(&zs).map(|((&x, &y), &z)| (x, y, z));
-        let lengths: Vec<f64> = coordinates().map(|(x, y, z)| (x * x + y * y + z * z).sqrt()).collect();
-        let recips: Vec<f64> = lengths.iter().map(|length| 1.0 / length).collect();
-        // `DVec3::normalize_or_zero` of each point, summed in order.
-        let mut centre = DVec3::ZERO;
-        for ((x, y, z), &recip) in coordinates().zip(&recips) {
-            if recip.is_finite() && recip > 0.0 {
-                centre += DVec3::new(x * recip, y * recip, z * recip);
-            }
-        }
-        let centre = centre.normalize_or_zero();
+        let centre = sum.normalize_or_zero();
         if centre == DVec3::ZERO {
             return f64::INFINITY;
         }
-        // The least radius and cosine; a minimum is the same in any order.
-        let cosines: Vec<f64> = coordinates()
-            .zip(&lengths)
-            .map(|((x, y, z), length)| (x * centre.x + y * centre.y + z * centre.z) / length)
-            .collect();
-        let lowest = lengths.iter().fold(f64::INFINITY, |lowest, &r| lowest.min(r));
-        let cos_spread = cosines.iter().fold(1.0_f64, |cos, &c| cos.min(c));
-        debug_assert_eq!((lowest, cos_spread), {
-            let points = surface.iter().flat_map(|&i| [self.world[i], self.morph_world[i]]);
-            points.fold((f64::INFINITY, 1.0_f64), |(lowest, cos), p| {
-                let r = p.length();
-                (lowest.min(r), cos.min(p.dot(centre) / r))
-            })
-        });
-        lowest * cos_spread.max(0.0) - 0.01 - self.layout.voxel_edge(self.key.lod) / 256.0
+        let mut lowest = f64::INFINITY;
+        for &i in surface {
+            // A comparison, not `f64::min`: no NaN to pass over (a NaN
+            // position would fail the bound whatever this does).
+            for along in [self.world[i].dot(centre), self.morph_world[i].dot(centre)] {
+                lowest = if along < lowest { along } else { lowest };
+            }
+        }
+        lowest.max(0.0) - 0.01 - self.layout.voxel_edge(self.key.lod) / 256.0
     }
 
     /// The vertices in GPU form (see [`RenderVertex`]), in the order of

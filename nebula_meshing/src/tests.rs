@@ -1322,6 +1322,14 @@ fn no_drawn_point_lies_under_a_meshes_lowest_radius() {
                 let lowest_vertex =
                     mesh.world.iter().chain(&mesh.morph_world).map(|p| p.length()).fold(f64::INFINITY, f64::min);
                 let edge = earth.layout().voxel_edge(lod);
+                // Tight too: no lower than the lowest vertex times the least
+                // cosine of a vertex's angle from the vertices' mean direction.
+                let corners = || mesh.world.iter().chain(&mesh.morph_world);
+                let axis = corners().sum::<DVec3>().normalize();
+                let exact = lowest_vertex * corners().map(|p| p.dot(axis) / p.length()).fold(1.0, f64::min);
+                let margins = 0.01 + edge / 256.0;
+                let loose = exact - margins - render.lowest_radius;
+                assert!(loose <= 1e-6, "LOD {lod}: {loose} m looser, the sag {} m", lowest_vertex - exact);
                 let eye = centre + DVec3::new(unit() - 0.5, unit() - 0.5, unit() + 0.2) * edge * 64.0;
                 let frame = FrameDraw::new(eye, 1000.0, 1.0, true);
                 let draw = mesh.chunk_draw(edge * 10f64.powf(4.0 * unit() - 2.0));
