@@ -161,6 +161,18 @@ fn generate(c: &mut Criterion) {
             );
         });
     }
+    // Whether a chunk has anything to mesh, asked of every chunk filled:
+    // one of buried rock (under the high mountains' surface layers, where
+    // the whole chunk and its padding are read), the slope's middle chunk.
+    let mountain = mountain_chunk(&planet);
+    let buried = mountain.column().chunk(mountain.layer - 1);
+    for (name, key) in
+        [("has_no_surface_buried", buried), ("has_no_surface_slope", middle_surface_chunk(&planet, mountain))]
+    {
+        let mut voxels = ChunkVoxels::new(key);
+        planet.fill_chunk(key, &mut voxels).expect("valid key");
+        group.bench_function(name, |b| b.iter(|| voxels.has_no_surface()));
+    }
     // LOD-0 surface chunks at 32 places drawn at random (a fixed seed) over
     // the whole Earth, sea and land, mountains and plains: the mean cold
     // chunk, not one hand-picked (each place far from the others, so none

@@ -253,13 +253,27 @@ impl ChunkVoxels {
             return self.solid_count() == 0;
         }
         // All solid, including every face-adjacent padding voxel (edge and
-        // corner padding is never a face neighbour of the chunk proper).
+        // corner padding is never a face neighbour of the chunk proper):
+        // row by row as stored (x fastest), a row's run of voxels tested in
+        // one pass. A test a voxel of how many of its coordinates lie in
+        // the padding was 7 % of the workers' time over a hillside view
+        // (most chunks under the ground are all rock).
+        let last = PADDED_CHUNK_SIZE - 1;
         (0..PADDED_CHUNK_SIZE).all(|z| {
             (0..PADDED_CHUNK_SIZE).all(|y| {
-                (0..PADDED_CHUNK_SIZE).all(|x| {
-                    let outside = [x, y, z].iter().filter(|&&c| c == 0 || c == PADDED_CHUNK_SIZE - 1).count();
-                    outside > 1 || self.voxels[PaddedChunkShape::linearize([x, y, z]) as usize].is_solid()
-                })
+                let in_padding = u8::from(y == 0 || y == last) + u8::from(z == 0 || z == last);
+                // A row in the chunk proper takes its padding at both ends
+                // too; a row of the padding, its part beside the chunk; a
+                // row of the edge padding, nothing.
+                let xs = match in_padding {
+                    0 => 0..PADDED_CHUNK_SIZE,
+                    1 => 1..last,
+                    _ => return true,
+                };
+                let row = PaddedChunkShape::linearize([0, y, z]) as usize;
+                // A fold, not `all`: no branch a voxel, so it runs 16 at a time.
+                let run = &self.voxels[row + xs.start as usize..row + xs.end as usize];
+                run.iter().fold(true, |solid, voxel| solid & voxel.is_solid())
             })
         })
     }
