@@ -400,13 +400,18 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         clearance.hides(top)
     };
     let behind = |column: ChunkColumn| tree.node_bounds(column).is_some_and(|b| bounds_behind(column, b));
+    // A leaf whose lowest surface lies over the sea's hiding depth shows
+    // through the water wherever it is: not hidden, without asking its
+    // column and its ancestors (a memo lookup each, a tenth of a plan).
+    let may_be_under_sea =
+        |bounds: &NodeBounds| sea.is_some_and(|sea| bounds.min_radius <= sea.radius - sea.hiding_depth);
     // What is drawn for a leaf (with its bounds when known): itself, or
     // its coarsest ancestor hidden too (behind the horizon or under the
     // sea), and why.
     let mut drawn_for = |leaf: ChunkColumn, bounds: Option<&NodeBounds>| -> (ChunkColumn, Hidden) {
         let hidden = if bounds.map_or_else(|| behind(leaf), |b| bounds_behind(leaf, b)) {
             Hidden::BehindHorizon
-        } else if sea_hides(leaf, false) {
+        } else if bounds.is_none_or(&may_be_under_sea) && sea_hides(leaf, false) {
             Hidden::UnderSea
         } else {
             return (leaf, Hidden::No);
