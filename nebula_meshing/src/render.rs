@@ -445,19 +445,24 @@ impl ChunkMesh {
         for &i in surface {
             sum += self.world[i] + self.morph_world[i];
         }
+        let margins = 0.01 + self.layout.voxel_edge(self.key.lod) / 256.0;
         let centre = sum.normalize_or_zero();
-        if centre == DVec3::ZERO {
+        if surface.is_empty() {
             return f64::INFINITY;
+        } else if centre == DVec3::ZERO {
+            // Points whose sum has no direction (or is not finite): no
+            // bound but the centre.
+            return -margins;
         }
         let mut lowest = f64::INFINITY;
         for &i in surface {
-            // A comparison, not `f64::min`: no NaN to pass over (a NaN
-            // position would fail the bound whatever this does).
+            // A comparison, not `f64::min` (which takes care over NaN): the
+            // loop then runs two points at a time.
             for along in [self.world[i].dot(centre), self.morph_world[i].dot(centre)] {
                 lowest = if along < lowest { along } else { lowest };
             }
         }
-        lowest.max(0.0) - 0.01 - self.layout.voxel_edge(self.key.lod) / 256.0
+        lowest.max(0.0) - margins
     }
 
     /// The vertices in GPU form (see [`RenderVertex`]), in the order of

@@ -331,6 +331,12 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                     }))
         })
     };
+    // Whether the sea may hide a leaf with `bounds`: the sea hides a column
+    // only where its sea bed, or an ancestor's, lies wholly under the
+    // hiding radius, so a leaf whose lowest surface lies over it is not
+    // hidden; it is not asked (a memo lookup for it and its ancestors each
+    // was 7 % of the LOD thread's plan over land).
+    let may_be_under_sea = |bounds: &NodeBounds| sea.is_some_and(|sea| bounds.min_radius <= sea.hiding_radius());
     // The visible leaves' cache slots (a lookup is a miss in memory) and
     // whether the planned view holds them, found once for the ground's
     // horizon and the leaf loop below.
@@ -358,7 +364,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         .zip(&leaf_slots)
         .filter(|&((_, b), &(_, planned))| options.terrain_occlusion && planned && !sphere_hides(b))
         .map(|((leaf, b), &(slot, _))| {
-            if let Some(sea) = sea.filter(|sea| b.min_radius <= sea.radius && sea_hides(leaf, false)) {
+            if let Some(sea) = sea.filter(|_| may_be_under_sea(b) && sea_hides(leaf, false)) {
                 return (*b, Some(sea.radius));
             }
             let cached = slot.and_then(|slot| columns.in_slot(slot, leaf)).filter(|c| c.ready(leaf, stale));
@@ -400,11 +406,6 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         clearance.hides(top)
     };
     let behind = |column: ChunkColumn| tree.node_bounds(column).is_some_and(|b| bounds_behind(column, b));
-    // A leaf whose lowest surface lies over the sea's hiding depth shows
-    // through the water wherever it is: not hidden, without asking its
-    // column and its ancestors (a memo lookup each, a tenth of a plan).
-    let may_be_under_sea =
-        |bounds: &NodeBounds| sea.is_some_and(|sea| bounds.min_radius <= sea.radius - sea.hiding_depth);
     // What is drawn for a leaf (with its bounds when known): itself, or
     // its coarsest ancestor hidden too (behind the horizon or under the
     // sea), and why.
@@ -909,7 +910,7 @@ fn under_sea<S: VoxelSource + ?Sized>(
         return known;
     }
     let hidden = (column.lod < max_lod && parent(column).is_some_and(|up| under_sea(voxels, sea, memo, up, max_lod)))
-        || voxels.sea_bed_below(column, sea.radius - sea.hiding_depth).unwrap_or(false);
+        || voxels.sea_bed_below(column, sea.hiding_radius()).unwrap_or(false);
     memo.insert(column, hidden);
     hidden
 }

@@ -916,6 +916,14 @@ pub struct OpaqueSea {
     pub hiding_depth: f64,
 }
 
+impl OpaqueSea {
+    /// The radius under which sea bed no longer shows through the water.
+    #[must_use]
+    pub fn hiding_radius(&self) -> f64 {
+        self.radius - self.hiding_depth
+    }
+}
+
 /// Columns [`Streamer`] remembers as under the sea or not before it
 /// forgets them all (about 10 MB).
 pub(crate) const MAX_SEA_BED_MEMO: usize = 200_000;
