@@ -441,15 +441,16 @@ impl ChunkMesh {
     /// cosine (a square root and two divisions a point, and a lower bound)
     /// was a third of making a render mesh.
     fn lowest_radius(&self, surface: &[usize]) -> f64 {
+        if surface.is_empty() {
+            return f64::INFINITY;
+        }
         let mut sum = DVec3::ZERO;
         for &i in surface {
             sum += self.world[i] + self.morph_world[i];
         }
         let margins = 0.01 + self.layout.voxel_edge(self.key.lod) / 256.0;
         let centre = sum.normalize_or_zero();
-        if surface.is_empty() {
-            return f64::INFINITY;
-        } else if centre == DVec3::ZERO {
+        if centre == DVec3::ZERO {
             // Points whose sum has no direction (or is not finite): no
             // bound but the centre.
             return -margins;

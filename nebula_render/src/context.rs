@@ -23,6 +23,14 @@ pub fn instance_descriptor() -> wgpu::InstanceDescriptor {
     descriptor
 }
 
+/// Whether `adapter` rasterises on the CPU (lavapipe and other software
+/// drivers): where a renderer leaves multisampling and occlusion culling
+/// off by default (slower there, or no faster for more memory).
+#[must_use]
+pub fn is_cpu(adapter: &wgpu::Adapter) -> bool {
+    adapter.get_info().device_type == wgpu::DeviceType::Cpu
+}
+
 /// An adapter with its device and queue.
 pub struct GpuContext {
     /// The adapter.

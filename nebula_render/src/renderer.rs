@@ -615,7 +615,7 @@ impl PlanetRenderer {
         if color_format.is_srgb() || !renderable || color_format.has_depth_aspect() {
             return Err(RenderError::ColorFormat(color_format));
         }
-        let on_a_gpu = adapter.get_info().device_type != wgpu::DeviceType::Cpu;
+        let on_a_gpu = !crate::context::is_cpu(adapter);
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("nebula shader"),
             source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
