@@ -187,6 +187,22 @@ pub struct ChunkDraw {
     /// ([`drawn_ranges`]); drawn, they would be back faces, always behind
     /// the front of the closed surface.
     pub hidden_sides: u8,
+    /// Bit `FaceDirection as usize` set (and not hidden): that side's
+    /// faces are drawn with no face culled. The side's walls may look
+    /// away from the eye by too little to leave out: a step's wall seen
+    /// almost edge-on, or one the morph has nearly collapsed, is narrower
+    /// on screen than the rasteriser's rounding, and the faces either side
+    /// of it only share edges with it, not with each other.
+    pub two_sided_sides: u8,
+}
+
+impl ChunkDraw {
+    /// The sides drawn with their back faces too: two-sided and not
+    /// hidden.
+    #[must_use]
+    pub fn two_sided(&self) -> u8 {
+        self.two_sided_sides & !self.hidden_sides
+    }
 }
 
 impl RenderVertex {
@@ -357,15 +373,24 @@ impl RenderMesh {
 }
 
 /// The surface ranges of the sides `draw` does not hide, in index order,
-/// adjacent ranges merged. No allocation: a renderer calls it for every
-/// drawn chunk every frame.
+/// adjacent ranges merged ([`side_ranges`]).
 pub fn drawn_ranges(
     surface: &[std::ops::Range<usize>; 6],
     draw: &ChunkDraw,
 ) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
+    side_ranges(surface, !draw.hidden_sides)
+}
+
+/// The surface ranges of the sides whose bit is set in `sides` (as in
+/// [`ChunkDraw::hidden_sides`]), in index order, adjacent ranges merged.
+/// No allocation: a renderer calls it for every drawn chunk every frame.
+pub fn side_ranges(
+    surface: &[std::ops::Range<usize>; 6],
+    sides: u8,
+) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
     let mut parts: [std::ops::Range<usize>; 6] = Default::default();
     let mut count = 0;
-    let shown = surface.iter().enumerate().filter(|(side, _)| draw.hidden_sides & (1 << side) == 0);
+    let shown = surface.iter().enumerate().filter(|(side, _)| sides & (1 << side) != 0);
     for (_, range) in shown.filter(|(_, r)| !r.is_empty()) {
         parts[count] = range.clone();
         count += 1;
@@ -522,7 +547,7 @@ impl ChunkMesh {
     /// with `parent_error`.
     #[must_use]
     pub fn chunk_draw(&self, parent_error: f64) -> ChunkDraw {
-        ChunkDraw { parent_error, skirt_depths: self.skirt_depths, hidden_sides: 0 }
+        ChunkDraw { parent_error, skirt_depths: self.skirt_depths, hidden_sides: 0, two_sided_sides: 0 }
     }
 }
 

@@ -385,7 +385,7 @@ fn zips_are_drawn_whatever_sides_are_culled() {
         // The sides a renderer culls are the horizontal ones (a column's
         // walls; the faces looking up or down are always drawn).
         for hidden_sides in 0..16u8 {
-            let draw = ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides };
+            let draw = ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides, two_sided_sides: 0 };
             let ranges: Vec<_> = drawn_ranges(&mesh.surface_side_ranges(), &draw).collect();
             for &start in &zip_starts {
                 assert!(

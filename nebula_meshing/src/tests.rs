@@ -1030,6 +1030,7 @@ proptest! {
     fn drawn_ranges_are_the_shown_parts_in_order_and_merged(
         lengths in proptest::collection::vec(0usize..5, 6),
         hidden_sides in 0u8..64,
+        two_sided_sides in 0u8..64,
     ) {
         // Six consecutive parts (the surface's sides) in a shuffled order
         // of index ranges; what is drawn is exactly the indices of the
@@ -1043,14 +1044,22 @@ proptest! {
         }
         let part = |n: usize| starts[n]..starts[n] + lengths[n];
         let surface: [std::ops::Range<usize>; 6] = std::array::from_fn(part);
-        let draw = ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides };
+        let draw = ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides, two_sided_sides };
         let ranges: Vec<_> = drawn_ranges(&surface, &draw).collect();
         prop_assert!(ranges.windows(2).all(|w| w[0].end < w[1].start), "{ranges:?}");
         prop_assert!(ranges.iter().all(|r| !r.is_empty()));
         let drawn: HashSet<usize> = ranges.into_iter().flatten().collect();
         let shown: HashSet<usize> =
             (0..6).filter(|side| hidden_sides & (1 << side) == 0).flat_map(part).collect();
-        prop_assert_eq!(drawn, shown);
+        prop_assert_eq!(&drawn, &shown);
+        // The back faces a renderer draws too: those of the sides drawn
+        // two-sided, never of a hidden one.
+        let two: HashSet<usize> = side_ranges(&surface, draw.two_sided()).flatten().collect();
+        let two_sided_shown: HashSet<usize> = (0..6)
+            .filter(|side| two_sided_sides & !hidden_sides & (1 << side) != 0)
+            .flat_map(part)
+            .collect();
+        prop_assert_eq!(two, two_sided_shown);
     }
 }
 
@@ -1090,6 +1099,7 @@ fn skirts_drawn_from_outline_edges_are_the_skirt_triangles_of_the_mesh() {
                 parent_error: earth.layout().voxel_edge(lod) * 2.0,
                 skirt_depths: std::array::from_fn(|_| if unit() < 0.4 { 0.0 } else { (unit() * 20.0) as f32 }),
                 hidden_sides: (unit() * 64.0) as u8,
+                two_sided_sides: (unit() * 64.0) as u8,
             };
             let render = mesh.render_mesh();
             let vertices = mesh.render_vertices();

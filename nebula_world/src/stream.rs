@@ -143,8 +143,11 @@ pub struct DrawOptions {
     /// What drives μ.
     pub morph: MorphRule,
     /// Leave out a chunk's side walls when they all look away from the eye
+    /// by enough to be at least [`SLIVER_PX`] wide on screen
     /// (`ChunkDraw::hidden_sides`): back faces, never seen, about a tenth
-    /// of the triangles.
+    /// of the triangles; and draw the back faces of the sides looking away
+    /// by less (`ChunkDraw::two_sided_sides`), so that no rounding opens a
+    /// pinhole beside them. Off: every side drawn, its back faces culled.
     pub cull_back_sides: bool,
     /// Draw the leaves that the ground in front hides, bearing by bearing
     /// ([`TerrainHorizon`](nebula_lod::TerrainHorizon)), as their coarsest
@@ -333,7 +336,7 @@ impl<H: MeshHandle> CachedColumn<H> {
 /// sorted by layer (a hash map per column cost a pointer chase and a hash
 /// on every readiness check of every drawn column, every frame), and the
 /// outermost layer held, kept beside it (read for every drawn column every
-/// frame, [`ColumnSides::back_sides`]: the list is behind a pointer).
+/// frame, [`ColumnSides::facing`]: the list is behind a pointer).
 pub(crate) struct LayerMeshes<H>(Vec<(i32, LoadedChunk<H>)>, Option<i32>);
 
 impl<H> Default for LayerMeshes<H> {
@@ -1672,6 +1675,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             ..
         } = plan;
         let frame = self.frame;
+        // The τ and morph the frame is drawn with: how wide its walls look.
+        let (screen, morph) = (*self.tree.screen_space(), self.frame_draw(self.eye.position).morph);
         let cache = &mut self.cache;
         cache.mark_used(&used, frame);
         if !new_columns.is_empty() {
@@ -1693,10 +1698,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if options.cull_back_sides {
             for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
-                chunk_draw.hidden_sides = match cached.or_else(|| cache.columns.get(column)) {
-                    Some(cached) => cached.sides.back_sides(eye, cached.top_radius(voxels.layout())),
-                    None => ColumnSides::of(voxels.layout(), *column, None).back_sides(eye, None),
+                let scale = WallScale {
+                    eye,
+                    screen,
+                    morph,
+                    voxel_edge: voxels.layout().voxel_edge(column.lod),
+                    parent_error: chunk_draw.parent_error,
                 };
+                // A column not cached (none drawn) draws every wall.
+                let facing = match cached.or_else(|| cache.columns.get(column)) {
+                    Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
+                    None => SideFacing { hidden: 0, two_sided: !0 },
+                };
+                chunk_draw.hidden_sides = facing.hidden;
+                chunk_draw.two_sided_sides = facing.two_sided;
             }
         }
         let mut reseamed = HashSet::default();
@@ -2436,7 +2451,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 /// sides: the error it morphs towards and, per side, a skirt as deep as
 /// the LOD drawn across that side needs (none next to the same LOD, whose
 /// boundary vertices are shared exactly). No side is told to look away
-/// from the eye yet ([`ColumnSides::back_sides`]).
+/// from the eye yet ([`ColumnSides::facing`]).
 pub(crate) fn chunk_draw<S: VoxelSource + ?Sized>(
     voxels: &S,
     column: ChunkColumn,
@@ -2462,7 +2477,7 @@ pub(crate) fn chunk_draw<S: VoxelSource + ?Sized>(
             *depth = skirt_depth(voxels, column.lod, other) as f32;
         }
     }
-    ChunkDraw { parent_error, skirt_depths, hidden_sides: 0 }
+    ChunkDraw { parent_error, skirt_depths, hidden_sides: 0, two_sided_sides: 0 }
 }
 
 /// What is drawn across one side of a drawn column.
@@ -2626,7 +2641,40 @@ pub(crate) struct ColumnSides {
     /// node's bounds, where it had them when cached: read once, not from
     /// the tree every frame).
     directions: Option<(nebula_math::DVec3, f64, f64)>,
+    /// The box holding its surface (its node's bounds, as `directions`):
+    /// how far from the eye its walls can be.
+    extent: Option<(nebula_math::DVec3, nebula_math::DVec3)>,
     pub(crate) across: [Option<ChunkColumn>; 4],
+}
+
+/// The least width, in pixels, that a step's wall looking away from the
+/// eye must have on screen before it is left out. Left out, the faces on
+/// either side of it (the nearer one's silhouette edge, the farther one's
+/// edge at the wall's foot) no longer share an edge: they overlap by the
+/// wall's width on screen, and the rasteriser snaps each edge's corners
+/// on its own (to 1/256 px with 8 sub-pixel bits: lavapipe and desktop
+/// GPUs; this is four times that). A wall narrower than this stays in and
+/// its back faces are drawn too (`ChunkDraw::two_sided_sides`), so the
+/// strip nearer face, wall, farther face shares every edge and no rounding
+/// opens a pinhole: a step that the morph has nearly collapsed, or one
+/// seen almost edge-on.
+pub const SLIVER_PX: f64 = 1.0 / 64.0;
+
+/// What [`ColumnSides::facing`] needs of the frame and the column's
+/// LOD to tell how wide a wall looks on screen.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WallScale {
+    /// The eye.
+    pub(crate) eye: nebula_math::DVec3,
+    /// The frame's pixels per radian and τ.
+    pub(crate) screen: nebula_math::ScreenSpace,
+    /// Geomorphing on.
+    pub(crate) morph: bool,
+    /// The edge of a voxel of the column's LOD, metres: the lowest step
+    /// a wall of it can have unmorphed.
+    pub(crate) voxel_edge: f64,
+    /// The error the column morphs towards (`ChunkDraw::parent_error`).
+    pub(crate) parent_error: f64,
 }
 
 impl ColumnSides {
@@ -2641,54 +2689,107 @@ impl ColumnSides {
             i: planes(true, i64::from(column.x) * size),
             j: planes(false, i64::from(column.y) * size),
             directions: bounds.map(|b| (b.center_direction, b.angular_radius.cos(), b.angular_radius.sin())),
+            extent: bounds.map(|b| (b.min, b.max)),
             across,
         }
     }
 
-    /// The sides whose faces all look away from `eye` (bit `FaceDirection
-    /// as usize`), the radial faces looking down among them where the
-    /// column's faces lie under `top` (metres from the centre) and its
-    /// patch's directions are known.
+    /// How far (metres) the eye must be behind the plane of a wall of the
+    /// column before the wall is left out: a wall at distance D whose
+    /// plane is d from the eye is seen at an angle whose sine is d/D, and
+    /// its step, at least a voxel of the LOD times the morph factor μ
+    /// (a collapsing step shrinks with μ), is at least μ·δ·K·d/D² pixels
+    /// wide; D, μ taken at the farthest point of the column's box. +∞
+    /// where the extent is unknown or a step may have collapsed entirely
+    /// (μ = 0 at the far end): nothing is left out.
+    fn wall_margin(&self, scale: &WallScale) -> f64 {
+        const MARGIN_M: f64 = 1e-3;
+        let Some((low, high)) = self.extent else { return f64::INFINITY };
+        let eye = scale.eye;
+        let farthest = (eye - low).abs().max((high - eye).abs()).length();
+        let mu = if scale.morph && scale.parent_error.is_finite() {
+            scale.screen.morph_factor(scale.parent_error, farthest)
+        } else {
+            1.0
+        };
+        let pixels_per_metre = mu * scale.voxel_edge * scale.screen.k() / (farthest * farthest);
+        if pixels_per_metre > 0.0 { (SLIVER_PX / pixels_per_metre).max(MARGIN_M) } else { f64::INFINITY }
+    }
+
+    /// Which sides to leave out and which to draw two-sided (bit
+    /// `FaceDirection as usize`), the radial faces looking down among
+    /// them where the column's faces lie under `top` (metres from the
+    /// centre) and its patch's directions are known.
     ///
     /// A wall looking towards +i lies in the plane through the planet
     /// centre of its lattice line `i = c` and faces the eye only when the
     /// eye is on that plane's +i side; the column's walls lie in the planes
     /// from its first to its last line, a pencil about one axis, so the eye
-    /// is behind all of them when it is behind the two outermost (by more
-    /// than a millimetre, so rounding never hides a wall seen edge-on).
+    /// is behind all of them when it is behind the two outermost. A side
+    /// is left out when the eye is behind them by [`Self::wall_margin`], so
+    /// that every wall left out is at least [`SLIVER_PX`] wide on screen (a
+    /// millimetre at least, so rounding never hides a wall seen edge-on);
+    /// it is drawn two-sided when some wall of it may look away by less
+    /// (within the margin, or the eye between its planes).
     ///
     /// A face looking down (a ceiling, an overhang's underside) at a
     /// point v with normal −n (n within the patch's directions: its
     /// corners are on one radial layer) faces the eye only when eye·n <
-    /// v·n ≤ top: an eye above `top` in every direction of the patch sees
-    /// none. (Faces looking up are never left out: stitched seams'
-    /// zero-area zips lie in their range.)
-    pub(crate) fn back_sides(&self, eye: nebula_math::DVec3, top: Option<f64>) -> u8 {
-        const MARGIN_M: f64 = 1e-3;
-        let mut hidden = 0;
+    /// v·n ≤ top: an eye above `top` by the margin in every direction of
+    /// the patch sees none; elsewhere they are drawn two-sided. (Faces
+    /// looking up are never left out: stitched seams' zero-area zips lie
+    /// in their range.)
+    pub(crate) fn facing(&self, scale: &WallScale, top: Option<f64>) -> SideFacing {
+        const DOWN: u8 = 1 << FaceDirection::NegY as u8;
+        let walls = FaceDirection::HORIZONTAL.iter().fold(0, |bits, &side| bits | 1 << side as u8);
+        let margin = self.wall_margin(scale);
+        if margin == f64::INFINITY {
+            return SideFacing { hidden: 0, two_sided: walls | DOWN };
+        }
+        let eye = scale.eye;
+        let mut facing = SideFacing { hidden: 0, two_sided: 0 };
         for (planes, positive, negative) in
             [(self.i, FaceDirection::PosX, FaceDirection::NegX), (self.j, FaceDirection::PosZ, FaceDirection::NegZ)]
         {
             let sides = planes.map(|normal| eye.dot(normal));
-            if sides.iter().all(|&d| d < -MARGIN_M) {
-                hidden |= 1 << positive as u8;
-            }
-            if sides.iter().all(|&d| d > MARGIN_M) {
-                hidden |= 1 << negative as u8;
-            }
-        }
-        if let (Some((centre, cos_radius, sin_radius)), Some(top)) = (self.directions, top) {
-            // |eye|·cos(θ + ρ), θ the eye's angle from the middle and ρ the
-            // patch's angular radius: the least eye·n over the patch (no
-            // trigonometry every frame for every column).
-            let along = eye.dot(centre);
-            let across = (eye.length_squared() - along * along).max(0.0).sqrt();
-            if along * cos_radius - across * sin_radius > top + MARGIN_M {
-                hidden |= 1 << FaceDirection::NegY as u8;
+            let (positive, negative) = (1 << positive as u8, 1 << negative as u8);
+            if sides.iter().all(|&d| d < -margin) {
+                facing.hidden |= positive;
+            } else if sides.iter().all(|&d| d > margin) {
+                facing.hidden |= negative;
+            } else {
+                // The eye within the margin of a wall plane, or between
+                // them: walls of either side may look away edge-on.
+                facing.two_sided |= positive | negative;
             }
         }
-        hidden
+        let above = match (self.directions, top) {
+            (Some((centre, cos_radius, sin_radius)), Some(top)) => {
+                // |eye|·cos(θ + ρ), θ the eye's angle from the middle and
+                // ρ the patch's angular radius: the least eye·n over the
+                // patch (no trigonometry every frame for every column).
+                let along = eye.dot(centre);
+                let across = (eye.length_squared() - along * along).max(0.0).sqrt();
+                along * cos_radius - across * sin_radius > top + margin
+            }
+            _ => false,
+        };
+        if above {
+            facing.hidden |= DOWN;
+        } else {
+            facing.two_sided |= DOWN;
+        }
+        facing
     }
+}
+
+/// A column's sides as a frame draws them ([`ColumnSides::facing`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct SideFacing {
+    /// Left out (`ChunkDraw::hidden_sides`).
+    pub(crate) hidden: u8,
+    /// Drawn with no face culled (`ChunkDraw::two_sided_sides`).
+    pub(crate) two_sided: u8,
 }
 
 /// Why a [`Streamer`] could not start or take new voxels.

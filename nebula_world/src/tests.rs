@@ -1878,7 +1878,7 @@ mod streaming {
 }
 
 /// Faces looking down (ceilings, overhangs' undersides) are left out only
-/// where the eye is behind every one of them (`ColumnSides::back_sides`):
+/// where the eye is behind every one of them (`ColumnSides::facing`):
 /// over random Earth columns with such faces (LODs 0–2, caves on) and
 /// random eyes from under the ground to 2 km up, each column whose
 /// faces looking down are hidden has every such triangle facing away from
@@ -1890,7 +1890,34 @@ mod back_sides {
     use nebula_voxel::{ChunkColumn, DVec3, PlanetSettings, ProceduralPlanet, VoxelSource};
 
     use super::unit;
-    use crate::stream::ColumnSides;
+    use crate::stream::{ColumnSides, SLIVER_PX, WallScale};
+    use nebula_math::ScreenSpace;
+    use nebula_meshing::{ChunkDraw, FrameDraw};
+
+    /// A random direction and the column of a random LOD under `lods`
+    /// holding the ground there.
+    fn random_surface_column(earth: &ProceduralPlanet, lods: u8, state: &mut u64) -> (DVec3, ChunkColumn) {
+        let layout = earth.layout();
+        let direction = DVec3::new(unit(state) - 0.5, unit(state) - 0.5, unit(state) - 0.5).normalize();
+        let lod = (unit(state) * f64::from(lods)) as u8;
+        let ground = direction * (layout.sphere().radius() + earth.height_at(direction));
+        let mut at = layout.voxel_at(ground).expect("on the planet");
+        while at.lod < lod {
+            at = at.parent().expect("a parent");
+        }
+        (direction, layout.chunk_of(at).column())
+    }
+
+    /// The radius of the top of `column`'s layer `top_layer`, its bounds
+    /// and its sides.
+    fn column_sides(earth: &ProceduralPlanet, column: ChunkColumn, top_layer: i32) -> (f64, NodeBounds, ColumnSides) {
+        let layout = earth.layout();
+        let layer_top = (i64::from(top_layer) + 1) * 32 * layout.voxel_span(column.lod);
+        let top = layout.sphere().layer_radius(layer_top as f64);
+        let bounds = NodeBounds::new(layout, column, &earth.surface_bounds(column).expect("bounds"));
+        let sides = ColumnSides::of(layout, column, Some(&bounds));
+        (top, bounds, sides)
+    }
 
     #[test]
     fn faces_looking_down_are_hidden_only_behind_the_eye() {
@@ -1904,14 +1931,8 @@ mod back_sides {
             if columns >= 12 {
                 break;
             }
-            let direction = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
-            let direction = direction.normalize();
-            let lod = (unit(&mut state) * 3.0) as u8;
-            let mut at = layout.voxel_at(direction * (radius + earth.height_at(direction))).expect("on the planet");
-            while at.lod < lod {
-                at = at.parent().expect("a parent");
-            }
-            let column: ChunkColumn = layout.chunk_of(at).column();
+            let (direction, column) = random_surface_column(&earth, 3, &mut state);
+            let lod = column.lod;
             let layers = earth.surface_chunk_layers(column).expect("layers");
             let top_layer = *layers.end();
             // Triangles looking down: three world corners each.
@@ -1929,17 +1950,22 @@ mod back_sides {
                 continue;
             }
             columns += 1;
-            let layer_top = (i64::from(top_layer) + 1) * 32 * layout.voxel_span(lod);
-            let top = layout.sphere().layer_radius(layer_top as f64);
-            let bounds = NodeBounds::new(&layout, column, &earth.surface_bounds(column).expect("bounds"));
-            let sides = ColumnSides::of(&layout, column, Some(&bounds));
+            let (top, _, sides) = column_sides(&earth, column, top_layer);
             let faces_eye = |eye: DVec3| down.iter().any(|[a, b, c]| (eye - *a).dot((*b - *a).cross(*c - *a)) > 0.0);
             let ground = radius + earth.height_at(direction);
             for _ in 0..40 {
                 let along = DVec3::new(unit(&mut state) - 0.5, unit(&mut state) - 0.5, unit(&mut state) - 0.5);
                 let around = (direction + along * (3_000.0 / radius)).normalize();
                 let eye = around * (ground + (unit(&mut state) * 2_050.0 - 50.0));
-                let is_hidden = |top: f64| sides.back_sides(eye, Some(top)) & (1 << FaceDirection::NegY as u8) != 0;
+                let scale = WallScale {
+                    eye,
+                    screen: ScreenSpace::new(720.0, 60.0, 1.0).expect("screen"),
+                    morph: false,
+                    voxel_edge: layout.voxel_edge(lod),
+                    parent_error: layout.merge_error(lod),
+                };
+                let is_hidden =
+                    |top: f64| sides.facing(&scale, Some(top)).hidden & (1 << FaceDirection::NegY as u8) != 0;
                 if is_hidden(top) {
                     hidden += 1;
                     wrong += usize::from(faces_eye(eye));
@@ -1958,5 +1984,116 @@ mod back_sides {
         assert!(columns >= 12 && hidden > 0 && shown > 0, "{columns} columns, {hidden} hidden, {shown} shown");
         assert_eq!(wrong, 0);
         assert!(control_wrong > 0, "the check should catch a top taken too low");
+    }
+
+    /// A wall is left out only where it looks at least [`SLIVER_PX`] wide
+    /// on screen (`ColumnSides::facing`): left out, the faces either side
+    /// of it meet unshared, overlapping by that width, and a narrower one
+    /// lets the rasteriser's rounding open a pinhole (a random view 3 km up
+    /// had one). Over random Earth columns (LODs 0–4) and eyes around them
+    /// from 5° to 80° up, at distances across the morph band (μ from 0 to
+    /// 1), every triangle of a wall side left out, placed as the vertex
+    /// shader places it, keeps its lone corner (the one on the other
+    /// layer) at least half of `SLIVER_PX` from the line through the other
+    /// two on a 720-pixel, 60° screen. Control: the rule before it (left
+    /// out a millimetre behind every wall's plane) leaves thinner ones out.
+    #[test]
+    fn walls_left_out_look_wide_enough_on_screen() {
+        let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).expect("earth");
+        let layout = *earth.layout();
+        let screen = ScreenSpace::new(720.0, 60.0, 1.0).expect("screen");
+        let k = screen.k();
+        let mut state = 0x511e_u64;
+        let mut buffer = ChunkMeshBuffer::new();
+        let (mut columns, mut tested, mut thin, mut control_thin, mut narrowest) = (0, 0, 0, 0, f64::INFINITY);
+        let walls = FaceDirection::HORIZONTAL;
+        while columns < 10 {
+            let (_, column) = random_surface_column(&earth, 5, &mut state);
+            let lod = column.lod;
+            let layers = earth.surface_chunk_layers(column).expect("layers");
+            let top_layer = *layers.end();
+            let meshes: Vec<_> = layers
+                .map(|layer| {
+                    let key = column.chunk(layer);
+                    mesh_chunk(&earth, key, &ChunkLodContext::uniform(lod), MeshOptions::STREAMING, &mut buffer)
+                        .expect("meshes")
+                })
+                .collect();
+            if meshes.iter().all(|mesh| walls.iter().all(|&side| mesh.surface_side_ranges()[side as usize].is_empty()))
+            {
+                continue;
+            }
+            columns += 1;
+            let (top, bounds, sides) = column_sides(&earth, column, top_layer);
+            let centre = (bounds.min + bounds.max) / 2.0;
+            let parent_error = layout.merge_error(lod);
+            let draw = ChunkDraw { parent_error, skirt_depths: [0.0; 4], hidden_sides: 0, two_sided_sides: 0 };
+            let vertices: Vec<_> = meshes.iter().map(|mesh| mesh.render_vertices()).collect();
+            for _ in 0..60 {
+                // ρ_p/τ from 0.9 (μ = 0) to 1.6 (μ = 1).
+                let distance = parent_error * k / (0.9 + 0.7 * unit(&mut state));
+                let up = centre.normalize();
+                let tangent = up.any_orthonormal_vector();
+                let heading = unit(&mut state) * std::f64::consts::TAU;
+                let across = tangent * heading.cos() + up.cross(tangent) * heading.sin();
+                let elevation = (5.0 + 75.0 * unit(&mut state)).to_radians();
+                let eye = centre + (up * elevation.sin() + across * elevation.cos()) * distance;
+                let forward = (centre - eye).normalize();
+                let right = forward.cross(up).normalize();
+                let screen_up = right.cross(forward);
+                let frame = FrameDraw::new(eye, k, 1.0, true);
+                let project = |p: DVec3| {
+                    let depth = p.dot(forward);
+                    (depth > 0.0).then(|| [p.dot(right) * k / depth, p.dot(screen_up) * k / depth])
+                };
+                let scale = WallScale { eye, screen, morph: true, voxel_edge: layout.voxel_edge(lod), parent_error };
+                // The old rule: a millimetre behind every plane is enough.
+                let old = WallScale { voxel_edge: 1e12, ..scale };
+                for (rule, scale) in [(0, scale), (1, old)] {
+                    let hidden = sides.facing(&scale, Some(top)).hidden;
+                    for (mesh, vertices) in meshes.iter().zip(&vertices) {
+                        for side in walls.into_iter().filter(|&side| hidden & (1 << side as u8) != 0) {
+                            let range = mesh.surface_side_ranges()[side as usize].clone();
+                            for triangle in mesh.indices()[range].chunks_exact(3) {
+                                let radii = [0, 1, 2]
+                                    .map(|c| mesh.world_position(triangle[c] as usize).expect("vertex").length());
+                                // The corner alone on its layer (a wall's
+                                // triangle has two on one layer).
+                                let Some(lone) = (0..3).find(|&c| {
+                                    let (a, b) = (radii[(c + 1) % 3], radii[(c + 2) % 3]);
+                                    (a - b).abs() < 1e-3 && (radii[c] - a).abs() > 1e-3
+                                }) else {
+                                    continue;
+                                };
+                                let placed = [0, 1, 2]
+                                    .map(|c| project(vertices[triangle[c] as usize].drawn_relative(&frame, &draw)));
+                                let [Some(p), Some(a), Some(b)] =
+                                    [placed[lone], placed[(lone + 1) % 3], placed[(lone + 2) % 3]]
+                                else {
+                                    continue;
+                                };
+                                let (edge, to) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
+                                let width = (edge[0] * to[1] - edge[1] * to[0]).abs() / edge[0].hypot(edge[1]);
+                                if rule == 0 {
+                                    tested += 1;
+                                    narrowest = narrowest.min(width);
+                                    thin += usize::from(width < SLIVER_PX / 2.0);
+                                } else {
+                                    control_thin += usize::from(width < SLIVER_PX / 2.0);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        println!(
+            "{columns} columns: {tested} wall triangles left out, the narrowest {narrowest:.4} px wide, {thin} under \
+             {:.4} px; the old rule leaves out {control_thin} under it",
+            SLIVER_PX / 2.0
+        );
+        assert!(tested > 1_000, "too few walls left out to tell: {tested}");
+        assert_eq!(thin, 0, "walls narrower than the rounding left out");
+        assert!(control_thin > 0, "the check should catch the old rule");
     }
 }
