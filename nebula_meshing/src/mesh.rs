@@ -114,6 +114,12 @@ pub struct ChunkMesh {
     /// The surface triangles of the faces looking towards each side (index
     /// `FaceDirection as usize`), consecutive ranges of `indices`.
     pub(crate) surface_side_ranges: [std::ops::Range<usize>; 6],
+    /// Of each wall side's range (index as in
+    /// [`FaceDirection::HORIZONTAL`]), how many indices at its end are of
+    /// triangles the morph keeps at least a voxel tall
+    /// ([`ChunkMesh::surface_parts`]); 0 until ordered (every triangle
+    /// taken as flattened).
+    pub(crate) steady_walls: [usize; 4],
     pub(crate) skirt_triangles: usize,
     /// Depth of the skirt generated on each horizontal side (index as in
     /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none.
@@ -136,6 +142,7 @@ impl ChunkMesh {
             indices: Vec::new(),
             surface_index_count: 0,
             surface_side_ranges: [0..0, 0..0, 0..0, 0..0, 0..0, 0..0],
+            steady_walls: [0; 4],
             skirt_triangles: 0,
             skirt_depths: [0.0; 4],
             skirt_ranges: [0..0, 0..0, 0..0, 0..0],
@@ -153,12 +160,78 @@ impl ChunkMesh {
     }
 
     /// The range of [`ChunkMesh::indices`] holding the surface triangles of
-    /// the faces looking towards each side (index `FaceDirection as usize`):
-    /// a renderer can leave out the sides whose faces all look away from
-    /// the eye (see `ChunkDraw::hidden_sides`).
+    /// the faces looking towards each side (index `FaceDirection as usize`);
+    /// a renderer leaves parts of them out by [`ChunkMesh::surface_parts`]
+    /// (see `ChunkDraw::hidden_sides`).
     #[must_use]
     pub fn surface_side_ranges(&self) -> [std::ops::Range<usize>; 6] {
         self.surface_side_ranges.clone()
+    }
+
+    /// The surface's triangles in the parts a renderer leaves out or draws
+    /// two-sided apart ([`SURFACE_PARTS`](crate::SURFACE_PARTS) index
+    /// ranges of [`ChunkMesh::indices`], together the surface): part
+    /// `FaceDirection as usize`, a side's faces (of a wall side, those the
+    /// morph keeps at least a voxel tall); part 6 + k, the faces of wall
+    /// side `FaceDirection::HORIZONTAL[k]` the morph flattens (their
+    /// corners' morph targets on one radial layer: their height shrinks
+    /// with μ, to nothing at μ = 0).
+    #[must_use]
+    pub fn surface_parts(&self) -> [std::ops::Range<usize>; crate::SURFACE_PARTS] {
+        let mut parts: [std::ops::Range<usize>; crate::SURFACE_PARTS] = Default::default();
+        parts[..6].clone_from_slice(&self.surface_side_ranges);
+        for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
+            let range = self.surface_side_ranges[side as usize].clone();
+            let split = range.end - self.steady_walls[k];
+            parts[side as usize] = split..range.end;
+            parts[6 + k] = range.start..split;
+        }
+        parts
+    }
+
+    /// Orders each wall side's triangles so that those the morph flattens
+    /// come first, and counts the others ([`ChunkMesh::surface_parts`]). A
+    /// triangle is taken as flattened unless each corner is a lattice
+    /// point of the surface, none constrained onto a coarser neighbour's
+    /// lattice, and their morph targets (their local coordinates rounded
+    /// down to even) lie on two radial layers at least: then its height
+    /// between them is at least a voxel at every μ (linear in μ between a
+    /// voxel or more at μ = 1 and two or more at μ = 0, rounding keeping
+    /// the order).
+    pub(crate) fn order_collapsing_walls(&mut self) {
+        for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
+            let range = self.surface_side_ranges[side as usize].clone();
+            // A two-ended partition of whole triangles.
+            let (mut front, mut back) = (range.start, range.end);
+            while front < back {
+                let triangle = [self.indices[front], self.indices[front + 1], self.indices[front + 2]];
+                if self.flattens(triangle) {
+                    front += 3;
+                } else {
+                    back -= 3;
+                    for c in 0..3 {
+                        self.indices.swap(front + c, back + c);
+                    }
+                }
+            }
+            self.steady_walls[k] = range.end - front;
+        }
+    }
+
+    /// Whether the morph may flatten `triangle` (see
+    /// [`ChunkMesh::order_collapsing_walls`]).
+    fn flattens(&self, triangle: [u32; 3]) -> bool {
+        let layer = |index: u32| {
+            let index = index as usize;
+            match self.sources.get(index) {
+                Some(VertexSource::Surface { local, .. }) if !self.is_constrained(index) => Some(local[1] & !1),
+                _ => None,
+            }
+        };
+        match triangle.map(layer) {
+            [Some(a), Some(b), Some(c)] => a == b && b == c,
+            _ => true,
+        }
     }
 
     /// The depth each side's skirt was generated with (index as in

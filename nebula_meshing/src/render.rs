@@ -185,23 +185,50 @@ pub struct ChunkDraw {
     /// Bit `FaceDirection as usize` set: every surface face looking towards
     /// that side looks away from the eye, so its triangles are left out
     /// ([`drawn_ranges`]); drawn, they would be back faces, always behind
-    /// the front of the closed surface.
+    /// the front of the closed surface. Of a wall side, the faces the
+    /// morph keeps at least a voxel tall ([`ChunkMesh::surface_parts`]).
     pub hidden_sides: u8,
-    /// Bit `FaceDirection as usize` set (and not hidden): that side's
-    /// faces are drawn with no face culled. The side's walls may look
-    /// away from the eye by too little to leave out: a step's wall seen
-    /// almost edge-on, or one the morph has nearly collapsed, is narrower
-    /// on screen than the rasteriser's rounding, and the faces either side
-    /// of it only share edges with it, not with each other.
+    /// Bit `FaceDirection as usize` set: of a wall side, the faces the
+    /// morph flattens are left out too (they shrink with μ, so they must
+    /// look away by more to be left out).
+    pub hidden_flattening: u8,
+    /// Bit `FaceDirection as usize` set: the faces of that side that are
+    /// drawn are drawn two-sided. A wall may look away from the eye by too
+    /// little to leave out: a step's wall seen almost edge-on, or one the
+    /// morph has nearly flattened, is narrower on screen than the
+    /// rasteriser's rounding, and the faces either side of it only share
+    /// edges with it, not with each other.
     pub two_sided_sides: u8,
 }
 
+/// How many parts a surface is drawn in ([`ChunkMesh::surface_parts`]).
+pub const SURFACE_PARTS: usize = 10;
+
 impl ChunkDraw {
-    /// The sides drawn with their back faces too: two-sided and not
-    /// hidden.
+    /// Draw constants leaving nothing out and drawing nothing two-sided.
     #[must_use]
-    pub fn two_sided(&self) -> u8 {
-        self.two_sided_sides & !self.hidden_sides
+    pub fn new(parent_error: f64, skirt_depths: [f32; 4]) -> Self {
+        Self { parent_error, skirt_depths, hidden_sides: 0, hidden_flattening: 0, two_sided_sides: 0 }
+    }
+
+    /// The surface parts drawn (bit n: part n of
+    /// [`ChunkMesh::surface_parts`]).
+    #[must_use]
+    pub fn drawn_parts(&self) -> u16 {
+        let flattening = !self.hidden_flattening;
+        u16::from(!self.hidden_sides) & 0x3f | Self::wall_parts(flattening)
+    }
+
+    /// The surface parts drawn with their back faces too.
+    #[must_use]
+    pub fn two_sided_parts(&self) -> u16 {
+        (u16::from(self.two_sided_sides) & 0x3f | Self::wall_parts(self.two_sided_sides)) & self.drawn_parts()
+    }
+
+    /// The parts of the flattened faces of the wall sides set in `sides`
+    /// (`FaceDirection::HORIZONTAL[k]` is side k).
+    fn wall_parts(sides: u8) -> u16 {
+        u16::from(sides & 0xf) << 6
     }
 }
 
@@ -306,10 +333,10 @@ pub struct RenderMesh {
     pub vertices: Vec<RenderVertex>,
     /// The surface's triangle list.
     pub indices: Vec<u32>,
-    /// The surface triangles looking towards each side (index
-    /// `FaceDirection as usize`): consecutive ranges that together are
-    /// `indices`.
-    pub surface_side_ranges: [std::ops::Range<usize>; 6],
+    /// The surface's triangles in the parts a renderer leaves out or draws
+    /// two-sided apart (as in [`ChunkMesh::surface_parts`]): ranges of
+    /// `indices` that together are `indices`.
+    pub surface_parts: [std::ops::Range<usize>; SURFACE_PARTS],
     /// Outline edges `[a, b]` skirts hang from (vertex indices; the surface
     /// runs a → b along the chunk's side).
     pub skirt_edges: Vec<[u32; 2]>,
@@ -331,18 +358,18 @@ impl RenderMesh {
             + size_of_val(self.skirt_edges.as_slice())) as u64
     }
 
-    /// The index ranges of the surface drawn with `draw` (the sides it does
-    /// not hide).
+    /// The index ranges of the surface drawn with `draw` (the parts it
+    /// does not hide).
     pub fn drawn_ranges(&self, draw: &ChunkDraw) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-        drawn_ranges(&self.surface_side_ranges, draw)
+        drawn_ranges(&self.surface_parts, draw)
     }
 
-    /// Triangles of the surface looking towards each side (index
-    /// `FaceDirection as usize`), and of each side's skirt (two per
+    /// Triangles of each part of the surface (as in
+    /// [`ChunkMesh::surface_parts`]), and of each side's skirt (two per
     /// outline edge).
     #[must_use]
-    pub fn triangle_counts(&self) -> ([usize; 6], [usize; 4]) {
-        (self.surface_side_ranges.clone().map(|r| r.len() / 3), self.skirt_ranges.clone().map(|r| 2 * r.len()))
+    pub fn triangle_counts(&self) -> ([usize; SURFACE_PARTS], [usize; 4]) {
+        (self.surface_parts.clone().map(|r| r.len() / 3), self.skirt_ranges.clone().map(|r| 2 * r.len()))
     }
 
     /// The triangles drawn with `frame` and `chunk`, camera relative, as
@@ -372,40 +399,41 @@ impl RenderMesh {
     }
 }
 
-/// The surface ranges of the sides `draw` does not hide, in index order,
-/// adjacent ranges merged ([`side_ranges`]).
+/// The index ranges of the surface parts `draw` does not hide
+/// ([`part_ranges`]).
 pub fn drawn_ranges(
-    surface: &[std::ops::Range<usize>; 6],
+    surface: &[std::ops::Range<usize>; SURFACE_PARTS],
     draw: &ChunkDraw,
 ) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-    side_ranges(surface, !draw.hidden_sides)
+    part_ranges(surface, draw.drawn_parts())
 }
 
-/// The surface ranges of the sides whose bit is set in `sides` (as in
-/// [`ChunkDraw::hidden_sides`]), in index order, adjacent ranges merged.
-/// No allocation: a renderer calls it for every drawn chunk every frame.
-pub fn side_ranges(
-    surface: &[std::ops::Range<usize>; 6],
-    sides: u8,
+/// The index ranges of the surface parts whose bit is set in `parts` (as
+/// in [`ChunkDraw::drawn_parts`]), in index order, adjacent ranges
+/// merged. No allocation: a renderer calls it for every drawn chunk every
+/// frame.
+pub fn part_ranges(
+    surface: &[std::ops::Range<usize>; SURFACE_PARTS],
+    parts: u16,
 ) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-    let mut parts: [std::ops::Range<usize>; 6] = Default::default();
+    let mut ranges: [std::ops::Range<usize>; SURFACE_PARTS] = Default::default();
     let mut count = 0;
-    let shown = surface.iter().enumerate().filter(|(side, _)| sides & (1 << side) != 0);
+    let shown = surface.iter().enumerate().filter(|(part, _)| parts & (1 << part) != 0);
     for (_, range) in shown.filter(|(_, r)| !r.is_empty()) {
-        parts[count] = range.clone();
+        ranges[count] = range.clone();
         count += 1;
     }
-    parts[..count].sort_unstable_by_key(|r| r.start);
+    ranges[..count].sort_unstable_by_key(|r| r.start);
     let mut merged = 0;
     for n in 0..count {
-        if merged > 0 && parts[merged - 1].end == parts[n].start {
-            parts[merged - 1].end = parts[n].end;
+        if merged > 0 && ranges[merged - 1].end == ranges[n].start {
+            ranges[merged - 1].end = ranges[n].end;
         } else {
-            parts[merged] = parts[n].clone();
+            ranges[merged] = ranges[n].clone();
             merged += 1;
         }
     }
-    parts.into_iter().take(merged)
+    ranges.into_iter().take(merged)
 }
 
 /// The skirts `draw` lowers: each side (index as in
@@ -445,7 +473,7 @@ impl ChunkMesh {
         RenderMesh {
             vertices: self.render_vertices_of(&surface),
             indices,
-            surface_side_ranges: self.surface_side_ranges(),
+            surface_parts: self.surface_parts(),
             skirt_edges,
             skirt_ranges,
             lowest_radius: self.lowest_radius(&surface),
@@ -547,7 +575,7 @@ impl ChunkMesh {
     /// with `parent_error`.
     #[must_use]
     pub fn chunk_draw(&self, parent_error: f64) -> ChunkDraw {
-        ChunkDraw { parent_error, skirt_depths: self.skirt_depths, hidden_sides: 0, two_sided_sides: 0 }
+        ChunkDraw::new(parent_error, self.skirt_depths)
     }
 }
 

@@ -1028,39 +1028,114 @@ fn vertices_that_collapse_onto_one_target_are_drawn_bit_identical_at_mu_zero() {
 proptest! {
     #[test]
     fn drawn_ranges_are_the_shown_parts_in_order_and_merged(
-        lengths in proptest::collection::vec(0usize..5, 6),
+        lengths in proptest::collection::vec(0usize..5, SURFACE_PARTS),
         hidden_sides in 0u8..64,
+        hidden_flattening in 0u8..64,
         two_sided_sides in 0u8..64,
     ) {
-        // Six consecutive parts (the surface's sides) in a shuffled order
-        // of index ranges; what is drawn is exactly the indices of the
-        // parts shown, as ascending ranges that neither touch nor overlap.
-        let order = [3, 0, 5, 1, 2, 4];
-        let mut starts = [0usize; 6];
+        // Ten consecutive parts (the sides, then the walls' flattening
+        // faces) in a shuffled order of index ranges; what is drawn is
+        // exactly the indices of the parts shown, as ascending ranges that
+        // neither touch nor overlap.
+        let order = [3, 8, 0, 5, 1, 6, 9, 2, 4, 7];
+        let mut starts = [0usize; SURFACE_PARTS];
         let mut at = 0;
         for &part in &order {
             starts[part] = at;
             at += lengths[part];
         }
         let part = |n: usize| starts[n]..starts[n] + lengths[n];
-        let surface: [std::ops::Range<usize>; 6] = std::array::from_fn(part);
-        let draw = ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides, two_sided_sides };
+        let surface: [std::ops::Range<usize>; SURFACE_PARTS] = std::array::from_fn(part);
+        let draw =
+            ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening, two_sided_sides };
         let ranges: Vec<_> = drawn_ranges(&surface, &draw).collect();
         prop_assert!(ranges.windows(2).all(|w| w[0].end < w[1].start), "{ranges:?}");
         prop_assert!(ranges.iter().all(|r| !r.is_empty()));
         let drawn: HashSet<usize> = ranges.into_iter().flatten().collect();
-        let shown: HashSet<usize> =
-            (0..6).filter(|side| hidden_sides & (1 << side) == 0).flat_map(part).collect();
+        // Part n < 6 is side n; part 6 + k the flattening faces of wall
+        // side k.
+        let side_of = |n: usize| if n < 6 { n } else { n - 6 };
+        let hidden = |n: usize| if n < 6 { hidden_sides } else { hidden_flattening } & (1 << side_of(n)) != 0;
+        let shown: HashSet<usize> = (0..SURFACE_PARTS).filter(|&n| !hidden(n)).flat_map(part).collect();
         prop_assert_eq!(&drawn, &shown);
         // The back faces a renderer draws too: those of the sides drawn
-        // two-sided, never of a hidden one.
-        let two: HashSet<usize> = side_ranges(&surface, draw.two_sided()).flatten().collect();
-        let two_sided_shown: HashSet<usize> = (0..6)
-            .filter(|side| two_sided_sides & !hidden_sides & (1 << side) != 0)
+        // two-sided, never of a hidden part.
+        let two: HashSet<usize> = part_ranges(&surface, draw.two_sided_parts()).flatten().collect();
+        let two_sided_shown: HashSet<usize> = (0..SURFACE_PARTS)
+            .filter(|&n| !hidden(n) && two_sided_sides & (1 << side_of(n)) != 0)
             .flat_map(part)
             .collect();
         prop_assert_eq!(two, two_sided_shown);
     }
+}
+
+/// Only the wall faces a mesh keeps apart as flattening
+/// (`ChunkMesh::surface_parts`, parts 6–9) can come nearer than a voxel to
+/// no height as they morph, so only those must look away by more before a
+/// renderer leaves them out. Over Earth chunks at LODs 0–8, meshed for
+/// streaming, with edges constrained to a coarser neighbour and stitched:
+/// every other wall triangle spans at least a voxel of height at every μ
+/// (0 to 1 by twentieths), while the flattening ones come to no height at
+/// μ = 0 (over a thousand: the split is what keeps the others' bound).
+#[test]
+fn only_the_faces_kept_apart_as_flattening_flatten() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let mut state = 0xf1a7_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let (mut steady, mut flattening, mut flattened, mut too_low) = (0, 0, 0, 0);
+    let mut buffer = ChunkMeshBuffer::new();
+    for case in 0..60u32 {
+        let lod = [0, 1, 2, 4, 8][case as usize % 5];
+        let per_edge = earth.layout().chunks_per_edge(lod);
+        let column = ChunkColumn {
+            face: CubeFace::ALL[case as usize % 6],
+            lod,
+            x: (unit() * f64::from(per_edge)) as u32,
+            y: (unit() * f64::from(per_edge)) as u32,
+        };
+        let coarser = NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 };
+        let mut context = ChunkLodContext::uniform(lod);
+        let options = match case % 3 {
+            0 => MeshOptions::STREAMING,
+            1 => {
+                context.set(FaceDirection::PosX, coarser);
+                MeshOptions::default()
+            }
+            _ => {
+                context.set(FaceDirection::NegZ, coarser);
+                MeshOptions::STITCHED
+            }
+        };
+        let voxel = earth.layout().voxel_edge(lod);
+        for layer in earth.surface_chunk_layers(column).unwrap() {
+            let Ok(mesh) = mesh_chunk(&earth, column.chunk(layer), &context, options, &mut buffer) else { continue };
+            let parts = mesh.surface_parts();
+            let height = |triangle: &[u32], mu: f64| {
+                let radii = [0, 1, 2].map(|c| {
+                    let i = triangle[c] as usize;
+                    let target = mesh.morph_world[i];
+                    (target + (mesh.world[i] - target) * mu).length()
+                });
+                radii.iter().fold(f64::MIN, |a, &b| a.max(b)) - radii.iter().fold(f64::MAX, |a, &b| a.min(b))
+            };
+            for side in FaceDirection::HORIZONTAL {
+                for triangle in mesh.indices[parts[side as usize].clone()].chunks_exact(3) {
+                    steady += 1;
+                    let lowest = (0..=20).map(|n| height(triangle, f64::from(n) / 20.0)).fold(f64::MAX, f64::min);
+                    too_low += usize::from(lowest < 0.999 * voxel);
+                }
+                for triangle in mesh.indices[parts[6 + side as usize].clone()].chunks_exact(3) {
+                    flattening += 1;
+                    flattened += usize::from(height(triangle, 0.0) < 1e-6 * voxel);
+                }
+            }
+        }
+    }
+    println!(
+        "{steady} wall triangles kept a voxel tall ({too_low} lower), {flattening} flattening ({flattened} flat at μ = 0)"
+    );
+    assert!(steady > 1_000 && flattened > 1_000, "{steady} steady, {flattened} flattened");
+    assert_eq!(too_low, 0, "a wall triangle not kept apart came lower than a voxel");
 }
 
 #[test]
@@ -1099,6 +1174,7 @@ fn skirts_drawn_from_outline_edges_are_the_skirt_triangles_of_the_mesh() {
                 parent_error: earth.layout().voxel_edge(lod) * 2.0,
                 skirt_depths: std::array::from_fn(|_| if unit() < 0.4 { 0.0 } else { (unit() * 20.0) as f32 }),
                 hidden_sides: (unit() * 64.0) as u8,
+                hidden_flattening: (unit() * 64.0) as u8,
                 two_sided_sides: (unit() * 64.0) as u8,
             };
             let render = mesh.render_mesh();

@@ -694,7 +694,7 @@ mod tests {
             let meshes = meshes();
             prop_assert!(meshes.len() > 6);
             for mesh in meshes {
-                let draw = ChunkDraw { parent_error: 4.0, skirt_depths: depths, hidden_sides: 0, two_sided_sides: 0 };
+                let draw = ChunkDraw::new(4.0, depths);
                 let b = MeshBox::of(mesh).relative(frame.eye(), &draw, 0);
                 for point in mesh.drawn_triangles(&frame, &draw).iter().flatten() {
                     let out = outside(&b, *point);

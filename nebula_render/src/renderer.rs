@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
-use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, lowered_skirts, side_ranges, split_high_low};
+use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, SURFACE_PARTS, lowered_skirts, part_ranges, split_high_low};
 use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
 use wgpu::util::{DrawIndexedIndirectArgs, DrawIndirectArgs};
 
@@ -188,9 +188,11 @@ pub struct GpuMesh {
     /// Where its vertices, indices and skirt edges live (`None`: empty,
     /// never drawn).
     slot: Option<Slot>,
-    /// Each side's range of surface indices, `[start, end)` (u32 pairs,
-    /// not `Range<usize>`: a cache holds tens of thousands of meshes).
-    surface_side_ranges: [[u32; 2]; 6],
+    /// Each surface part's range of indices
+    /// (`nebula_meshing::ChunkMesh::surface_parts`), `[start, end)` (u32
+    /// pairs, not `Range<usize>`: a cache holds tens of thousands of
+    /// meshes).
+    surface_parts: [[u32; 2]; SURFACE_PARTS],
     /// Each side's range of skirt edges, `[start, end)`.
     skirt_ranges: [[u32; 2]; 4],
     /// The box of its surface, occlusion culling's test.
@@ -531,7 +533,7 @@ impl MeshUploader {
             bytes: slot.as_ref().map_or(0, Slot::bytes),
             slot,
             bounds: MeshBox::of(mesh),
-            surface_side_ranges: mesh.surface_side_ranges.clone().map(narrow_range),
+            surface_parts: mesh.surface_parts.clone().map(narrow_range),
             skirt_ranges: mesh.skirt_ranges.clone().map(narrow_range),
             lod: key.lod,
             id: id % 4096,
@@ -1126,10 +1128,10 @@ impl PlanetRenderer {
             let format = usize::from(slot.index_format() == INDEX_FORMATS[1]);
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
             let batch = &mut by_page[slot.page];
-            let surface = mesh.surface_side_ranges.map(widen_range);
-            // Every side drawn, then the back faces of those drawn two-sided.
-            for (back, sides) in [!draw.hidden_sides, draw.two_sided()].into_iter().enumerate() {
-                for range in side_ranges(&surface, sides) {
+            let surface = mesh.surface_parts.map(widen_range);
+            // Every part drawn, then the back faces of those drawn two-sided.
+            for (back, parts) in [draw.drawn_parts(), draw.two_sided_parts()].into_iter().enumerate() {
+                for range in part_ranges(&surface, parts) {
                     batch.surface[back][format].push(DrawIndexedIndirectArgs {
                         index_count: range.len() as u32,
                         instance_count: 1,

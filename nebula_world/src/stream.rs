@@ -166,9 +166,9 @@ impl Default for DrawOptions {
 pub struct LoadedChunk<H> {
     /// The renderer's handle.
     pub handle: H,
-    /// Surface triangles looking towards each side (index
-    /// `FaceDirection as usize`).
-    pub surface_triangles: [u32; 6],
+    /// Surface triangles of each part (as in
+    /// `nebula_meshing::ChunkMesh::surface_parts`).
+    pub surface_triangles: [u32; nebula_meshing::SURFACE_PARTS],
     /// Skirt triangles per side (as in `FaceDirection::HORIZONTAL`).
     pub skirt_triangles: [u32; 4],
     /// The mesh on the CPU, when the streamer keeps them
@@ -824,7 +824,9 @@ struct MeshResult<H> {
 /// A finished mesh: to be uploaded by the frame thread, or uploaded
 /// already by the worker that made it ([`Streamer::set_uploader`]).
 enum Made<H> {
-    Mesh(RenderMesh),
+    /// Boxed: a render mesh's head (its part and skirt ranges) is a few
+    /// hundred bytes, a job's result is moved through channels.
+    Mesh(Box<RenderMesh>),
     Uploaded(LoadedChunk<H>),
 }
 
@@ -1287,7 +1289,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     seams: self.seams,
                     relations: SAME_ALL_ROUND,
                     generation: 0,
-                    result: Ok(Made::Mesh(mesh.render_mesh())),
+                    result: Ok(Made::Mesh(Box::new(mesh.render_mesh()))),
                     millis: 0.0,
                 };
                 self.store(done, upload);
@@ -1708,9 +1710,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 // A column not cached (none drawn) draws every wall.
                 let facing = match cached.or_else(|| cache.columns.get(column)) {
                     Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
-                    None => SideFacing { hidden: 0, two_sided: !0 },
+                    None => SideFacing { hidden: 0, hidden_flattening: 0, two_sided: !0 },
                 };
                 chunk_draw.hidden_sides = facing.hidden;
+                chunk_draw.hidden_flattening = facing.hidden_flattening;
                 chunk_draw.two_sided_sides = facing.two_sided;
             }
         }
@@ -2131,7 +2134,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 .filter(|(_, d)| *d > 0.0)
                 .map(|(&n, _)| n as usize)
                 .sum();
-            let shown = |(side, &n): (usize, &u32)| if draw.hidden_sides & (1 << side) == 0 { n as usize } else { 0 };
+            let shown = |(part, &n): (usize, &u32)| if draw.drawn_parts() & (1 << part) != 0 { n as usize } else { 0 };
             let triangles = chunk.surface_triangles.iter().enumerate().map(shown).sum::<usize>() + skirts;
             figures.triangles += triangles;
             figures.lod_triangles[usize::from(key.lod)] += triangles;
@@ -2207,7 +2210,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             Made::Mesh(mesh) => {
                 let mut loaded = LoadedChunk {
                     made_for: done.relations,
-                    ..LoadedChunk::uploaded(key, mesh, |key, mesh| upload(key, mesh), true)
+                    ..LoadedChunk::uploaded(key, *mesh, |key, mesh| upload(key, mesh), true)
                 };
                 if !self.cache.keep_cpu {
                     // Freed by a meshing worker (`JobState::spent`).
@@ -2364,7 +2367,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                             made_for: job.relations,
                             ..LoadedChunk::uploaded(job.key, mesh, &**upload, keep_cpu)
                         }),
-                        None => Made::Mesh(mesh),
+                        None => Made::Mesh(Box::new(mesh)),
                     });
                     let millis = start.elapsed().as_secs_f64() * 1e3;
                     // It stays in the running set until collected, so no
@@ -2477,7 +2480,7 @@ pub(crate) fn chunk_draw<S: VoxelSource + ?Sized>(
             *depth = skirt_depth(voxels, column.lod, other) as f32;
         }
     }
-    ChunkDraw { parent_error, skirt_depths, hidden_sides: 0, two_sided_sides: 0 }
+    ChunkDraw::new(parent_error, skirt_depths)
 }
 
 /// What is drawn across one side of a drawn column.
@@ -2695,16 +2698,18 @@ impl ColumnSides {
     }
 
     /// How far (metres) the eye must be behind the plane of a wall of the
-    /// column before the wall is left out: a wall at distance D whose
-    /// plane is d from the eye is seen at an angle whose sine is d/D, and
-    /// its step, at least a voxel of the LOD times the morph factor μ
-    /// (a collapsing step shrinks with μ), is at least μ·δ·K·d/D² pixels
-    /// wide; D, μ taken at the farthest point of the column's box. +∞
-    /// where the extent is unknown or a step may have collapsed entirely
-    /// (μ = 0 at the far end): nothing is left out.
-    fn wall_margin(&self, scale: &WallScale) -> f64 {
+    /// column before the wall is left out, for the walls the morph keeps
+    /// at least a voxel tall and for those it flattens (and the faces
+    /// looking down): a wall at distance D whose plane is d from the eye
+    /// is seen at an angle whose sine is d/D, and its step, at least a
+    /// voxel δ of the LOD tall (times the morph factor μ where the morph
+    /// flattens it), is at least (μ·)δ·K·d/D² pixels wide; D and μ taken
+    /// at the farthest point of the column's box. `None` where the extent
+    /// is unknown; +∞ for the flattening walls where μ may be 0 (nothing
+    /// of them is left out).
+    fn wall_margins(&self, scale: &WallScale) -> Option<(f64, f64)> {
         const MARGIN_M: f64 = 1e-3;
-        let Some((low, high)) = self.extent else { return f64::INFINITY };
+        let (low, high) = self.extent?;
         let eye = scale.eye;
         let farthest = (eye - low).abs().max((high - eye).abs()).length();
         let mu = if scale.morph && scale.parent_error.is_finite() {
@@ -2712,8 +2717,8 @@ impl ColumnSides {
         } else {
             1.0
         };
-        let pixels_per_metre = mu * scale.voxel_edge * scale.screen.k() / (farthest * farthest);
-        if pixels_per_metre > 0.0 { (SLIVER_PX / pixels_per_metre).max(MARGIN_M) } else { f64::INFINITY }
+        let steady = (SLIVER_PX * farthest * farthest / (scale.voxel_edge * scale.screen.k())).max(MARGIN_M);
+        Some((steady, if mu > 0.0 { steady / mu } else { f64::INFINITY }))
     }
 
     /// Which sides to leave out and which to draw two-sided (bit
@@ -2725,42 +2730,51 @@ impl ColumnSides {
     /// centre of its lattice line `i = c` and faces the eye only when the
     /// eye is on that plane's +i side; the column's walls lie in the planes
     /// from its first to its last line, a pencil about one axis, so the eye
-    /// is behind all of them when it is behind the two outermost. A side
-    /// is left out when the eye is behind them by [`Self::wall_margin`], so
-    /// that every wall left out is at least [`SLIVER_PX`] wide on screen (a
-    /// millimetre at least, so rounding never hides a wall seen edge-on);
-    /// it is drawn two-sided when some wall of it may look away by less
-    /// (within the margin, or the eye between its planes).
+    /// is behind all of them when it is behind the two outermost. A side's
+    /// walls are left out when the eye is behind them by
+    /// [`Self::wall_margins`], so that every wall left out is at least
+    /// [`SLIVER_PX`] wide on screen (a millimetre at least, so rounding
+    /// never hides a wall seen edge-on): those the morph keeps a voxel
+    /// tall by the first margin, those it flattens by the second. What
+    /// is drawn of a side that looks away by less (or that the eye stands
+    /// between) is drawn two-sided.
     ///
     /// A face looking down (a ceiling, an overhang's underside) at a
     /// point v with normal −n (n within the patch's directions: its
     /// corners are on one radial layer) faces the eye only when eye·n <
-    /// v·n ≤ top: an eye above `top` by the margin in every direction of
-    /// the patch sees none; elsewhere they are drawn two-sided. (Faces
-    /// looking up are never left out: stitched seams' zero-area zips lie
-    /// in their range.)
+    /// v·n ≤ top: an eye above `top` by the flattening margin in every
+    /// direction of the patch sees none; elsewhere they are drawn
+    /// two-sided. (Faces looking up are never left out: stitched seams'
+    /// zero-area zips lie in their range.)
     pub(crate) fn facing(&self, scale: &WallScale, top: Option<f64>) -> SideFacing {
         const DOWN: u8 = 1 << FaceDirection::NegY as u8;
-        let walls = FaceDirection::HORIZONTAL.iter().fold(0, |bits, &side| bits | 1 << side as u8);
-        let margin = self.wall_margin(scale);
-        if margin == f64::INFINITY {
-            return SideFacing { hidden: 0, two_sided: walls | DOWN };
-        }
+        let Some((steady, flattening)) = self.wall_margins(scale) else {
+            let walls = FaceDirection::HORIZONTAL.iter().fold(0, |bits, &side| bits | 1 << side as u8);
+            return SideFacing { hidden: 0, hidden_flattening: 0, two_sided: walls | DOWN };
+        };
         let eye = scale.eye;
-        let mut facing = SideFacing { hidden: 0, two_sided: 0 };
+        let mut facing = SideFacing { hidden: 0, hidden_flattening: 0, two_sided: 0 };
         for (planes, positive, negative) in
             [(self.i, FaceDirection::PosX, FaceDirection::NegX), (self.j, FaceDirection::PosZ, FaceDirection::NegZ)]
         {
-            let sides = planes.map(|normal| eye.dot(normal));
-            let (positive, negative) = (1 << positive as u8, 1 << negative as u8);
-            if sides.iter().all(|&d| d < -margin) {
-                facing.hidden |= positive;
-            } else if sides.iter().all(|&d| d > margin) {
-                facing.hidden |= negative;
-            } else {
-                // The eye within the margin of a wall plane, or between
-                // them: walls of either side may look away edge-on.
-                facing.two_sided |= positive | negative;
+            // How far the eye is behind the outermost planes of the walls
+            // looking towards `positive` (in front, for `negative`): the
+            // least and the most.
+            let [a, b] = planes.map(|normal| -eye.dot(normal));
+            for (bit, least, most) in
+                [(1 << positive as u8, a.min(b), a.max(b)), (1 << negative as u8, -a.max(b), -a.min(b))]
+            {
+                if least > flattening {
+                    facing.hidden |= bit;
+                    facing.hidden_flattening |= bit;
+                } else if least > steady {
+                    facing.hidden |= bit;
+                    facing.two_sided |= bit;
+                } else if most > -steady {
+                    // Some wall of this side may look away, by less than
+                    // the margin (or the eye stands between the planes).
+                    facing.two_sided |= bit;
+                }
             }
         }
         let above = match (self.directions, top) {
@@ -2770,7 +2784,7 @@ impl ColumnSides {
                 // patch (no trigonometry every frame for every column).
                 let along = eye.dot(centre);
                 let across = (eye.length_squared() - along * along).max(0.0).sqrt();
-                along * cos_radius - across * sin_radius > top + margin
+                along * cos_radius - across * sin_radius > top + flattening
             }
             _ => false,
         };
@@ -2788,6 +2802,9 @@ impl ColumnSides {
 pub(crate) struct SideFacing {
     /// Left out (`ChunkDraw::hidden_sides`).
     pub(crate) hidden: u8,
+    /// Of the walls, the faces the morph flattens left out too
+    /// (`ChunkDraw::hidden_flattening`).
+    pub(crate) hidden_flattening: u8,
     /// Drawn with no face culled (`ChunkDraw::two_sided_sides`).
     pub(crate) two_sided: u8,
 }

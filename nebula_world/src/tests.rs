@@ -1892,7 +1892,7 @@ mod back_sides {
     use super::unit;
     use crate::stream::{ColumnSides, SLIVER_PX, WallScale};
     use nebula_math::ScreenSpace;
-    use nebula_meshing::{ChunkDraw, FrameDraw};
+    use nebula_meshing::{ChunkDraw, FrameDraw, SURFACE_PARTS};
 
     /// A random direction and the column of a random LOD under `lods`
     /// holding the ground there.
@@ -1992,11 +1992,13 @@ mod back_sides {
     /// lets the rasteriser's rounding open a pinhole (a random view 3 km up
     /// had one). Over random Earth columns (LODs 0–4) and eyes around them
     /// from 5° to 80° up, at distances across the morph band (μ from 0 to
-    /// 1), every triangle of a wall side left out, placed as the vertex
-    /// shader places it, keeps its lone corner (the one on the other
-    /// layer) at least half of `SLIVER_PX` from the line through the other
-    /// two on a 720-pixel, 60° screen. Control: the rule before it (left
-    /// out a millimetre behind every wall's plane) leaves thinner ones out.
+    /// 1), every triangle of a wall part left out (the faces the morph
+    /// keeps a voxel tall, or flattens), placed as the vertex shader places
+    /// it, keeps its lone corner (the one on the other layer) at least half
+    /// of `SLIVER_PX` from the line of its other two, across the wall's
+    /// edges as they lie unmorphed, on a 720-pixel, 60° screen. Control:
+    /// the rule before it (left out a millimetre behind every wall's plane)
+    /// leaves thinner ones out.
     #[test]
     fn walls_left_out_look_wide_enough_on_screen() {
         let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).expect("earth");
@@ -2027,7 +2029,7 @@ mod back_sides {
             let (top, bounds, sides) = column_sides(&earth, column, top_layer);
             let centre = (bounds.min + bounds.max) / 2.0;
             let parent_error = layout.merge_error(lod);
-            let draw = ChunkDraw { parent_error, skirt_depths: [0.0; 4], hidden_sides: 0, two_sided_sides: 0 };
+            let draw = ChunkDraw::new(parent_error, [0.0; 4]);
             let vertices: Vec<_> = meshes.iter().map(|mesh| mesh.render_vertices()).collect();
             for _ in 0..60 {
                 // ρ_p/τ from 0.9 (μ = 0) to 1.6 (μ = 1).
@@ -2042,18 +2044,25 @@ mod back_sides {
                 let right = forward.cross(up).normalize();
                 let screen_up = right.cross(forward);
                 let frame = FrameDraw::new(eye, k, 1.0, true);
+                let unmorphed = FrameDraw::new(eye, k, 1.0, false);
                 let project = |p: DVec3| {
                     let depth = p.dot(forward);
                     (depth > 0.0).then(|| [p.dot(right) * k / depth, p.dot(screen_up) * k / depth])
                 };
                 let scale = WallScale { eye, screen, morph: true, voxel_edge: layout.voxel_edge(lod), parent_error };
                 // The old rule: a millimetre behind every plane is enough.
-                let old = WallScale { voxel_edge: 1e12, ..scale };
+                let old = WallScale { voxel_edge: 1e12, morph: false, ..scale };
                 for (rule, scale) in [(0, scale), (1, old)] {
-                    let hidden = sides.facing(&scale, Some(top)).hidden;
+                    let facing = sides.facing(&scale, Some(top));
+                    let drawn =
+                        ChunkDraw { hidden_sides: facing.hidden, hidden_flattening: facing.hidden_flattening, ..draw }
+                            .drawn_parts();
+                    // The walls' parts: sides 0–3 and their flattening
+                    // faces, 6–9.
+                    let hidden = (0..SURFACE_PARTS).filter(|&part| part % 6 < 4 && drawn & (1 << part) == 0);
                     for (mesh, vertices) in meshes.iter().zip(&vertices) {
-                        for side in walls.into_iter().filter(|&side| hidden & (1 << side as u8) != 0) {
-                            let range = mesh.surface_side_ranges()[side as usize].clone();
+                        for part in hidden.clone() {
+                            let range = mesh.surface_parts()[part].clone();
                             for triangle in mesh.indices()[range].chunks_exact(3) {
                                 let radii = [0, 1, 2]
                                     .map(|c| mesh.world_position(triangle[c] as usize).expect("vertex").length());
@@ -2067,12 +2076,18 @@ mod back_sides {
                                 };
                                 let placed = [0, 1, 2]
                                     .map(|c| project(vertices[triangle[c] as usize].drawn_relative(&frame, &draw)));
-                                let [Some(p), Some(a), Some(b)] =
-                                    [placed[lone], placed[(lone + 1) % 3], placed[(lone + 2) % 3]]
+                                let [Some(p), Some(a)] = [placed[lone], placed[(lone + 1) % 3]] else {
+                                    continue;
+                                };
+                                // Along the wall's edges as they lie unmorphed (the pair
+                                // may morph onto one point: the wall shrinks along its
+                                // length, which opens no sliver between its edges).
+                                let [Some(a1), Some(b1)] = [(lone + 1) % 3, (lone + 2) % 3]
+                                    .map(|c| project(vertices[triangle[c] as usize].drawn_relative(&unmorphed, &draw)))
                                 else {
                                     continue;
                                 };
-                                let (edge, to) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
+                                let (edge, to) = ([b1[0] - a1[0], b1[1] - a1[1]], [p[0] - a[0], p[1] - a[1]]);
                                 let width = (edge[0] * to[1] - edge[1] * to[0]).abs() / edge[0].hypot(edge[1]);
                                 if rule == 0 {
                                     tested += 1;

@@ -86,18 +86,8 @@ fn meshes_with(planet: &ProceduralPlanet, column: ChunkColumn, options: MeshOpti
 fn pop_px(planet: &ProceduralPlanet, case: &Case, eye: DVec3, k: f64, morph: bool) -> f64 {
     let layout = planet.layout();
     let frame = FrameDraw::new(eye, k, 1.0, morph);
-    let child_draw = ChunkDraw {
-        parent_error: layout.merge_error(case.parent.lod - 1),
-        skirt_depths: [0.0; 4],
-        hidden_sides: 0,
-        two_sided_sides: 0,
-    };
-    let parent_draw = ChunkDraw {
-        parent_error: layout.merge_error(case.parent.lod),
-        skirt_depths: [0.0; 4],
-        hidden_sides: 0,
-        two_sided_sides: 0,
-    };
+    let child_draw = ChunkDraw::new(layout.merge_error(case.parent.lod - 1), [0.0; 4]);
+    let parent_draw = ChunkDraw::new(layout.merge_error(case.parent.lod), [0.0; 4]);
     let sphere = layout.sphere();
     let parent_span = layout.voxel_span(case.parent.lod);
     let mut worst = 0.0_f64;
@@ -283,12 +273,7 @@ struct Pop {
 /// surface of the other side near them counted apart.
 fn surface_pop(case: &Case, sides: &[Surface<'_>; 2], view: &PopView) -> Pop {
     let frame = FrameDraw::new(view.eye, view.k, 1.0, view.morph);
-    let draws = view.errors.map(|parent_error| ChunkDraw {
-        parent_error,
-        skirt_depths: [0.0; 4],
-        hidden_sides: 0,
-        two_sided_sides: 0,
-    });
+    let draws = view.errors.map(|parent_error| ChunkDraw::new(parent_error, [0.0; 4]));
     let drawn =
         [drawn_positions(&case.children, &frame, &draws[0]), drawn_positions(&case.parent_meshes, &frame, &draws[1])];
     // The smallest child voxel face is (edge)², so a hundredth of it is
