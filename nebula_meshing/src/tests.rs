@@ -846,13 +846,13 @@ fn lattice_tops(meshes: &[ChunkMesh], morphed: bool, lines: &[(f64, f64)]) -> Ve
     tops
 }
 
-/// Meshes every surface chunk of `column` (no seam passes).
 /// A random column of `face` at `lod`, from `unit` (uniform in [0, 1)).
 fn random_column(layout: &ChunkLayout, face: CubeFace, lod: u8, unit: &mut impl FnMut() -> f64) -> ChunkColumn {
     let per_edge = f64::from(layout.chunks_per_edge(lod));
     ChunkColumn { face, lod, x: (unit() * per_edge) as u32, y: (unit() * per_edge) as u32 }
 }
 
+/// Meshes every surface chunk of `column` (no seam passes).
 fn column_meshes(source: &ProceduralPlanet, column: ChunkColumn) -> Vec<ChunkMesh> {
     let mut buffer = ChunkMeshBuffer::new();
     source
@@ -1086,13 +1086,7 @@ fn only_the_faces_kept_apart_as_flattening_flatten() {
     let mut buffer = ChunkMeshBuffer::new();
     for case in 0..60u32 {
         let lod = [0, 1, 2, 4, 8][case as usize % 5];
-        let per_edge = earth.layout().chunks_per_edge(lod);
-        let column = ChunkColumn {
-            face: CubeFace::ALL[case as usize % 6],
-            lod,
-            x: (unit() * f64::from(per_edge)) as u32,
-            y: (unit() * f64::from(per_edge)) as u32,
-        };
+        let column = random_column(earth.layout(), CubeFace::ALL[case as usize % 6], lod, &mut unit);
         let coarser = NeighborLodRelation::HigherThanNeighbor { lod_diff: 1 };
         let mut context = ChunkLodContext::uniform(lod);
         let options = match case % 3 {
@@ -1154,13 +1148,7 @@ fn skirts_drawn_from_outline_edges_are_the_skirt_triangles_of_the_mesh() {
     let (mut meshes, mut skirt_triangles, mut control_differs) = (0, 0, 0);
     for case in 0..100u32 {
         let lod = [0, 1, 2, 4, 8, 12][case as usize % 6];
-        let per_edge = earth.layout().chunks_per_edge(lod);
-        let column = ChunkColumn {
-            face: CubeFace::ALL[case as usize % 6],
-            lod,
-            x: (unit() * f64::from(per_edge)) as u32,
-            y: (unit() * f64::from(per_edge)) as u32,
-        };
+        let column = random_column(earth.layout(), CubeFace::ALL[case as usize % 6], lod, &mut unit);
         let mut buffer = ChunkMeshBuffer::new();
         for layer in earth.surface_chunk_layers(column).unwrap() {
             let key = column.chunk(layer);
