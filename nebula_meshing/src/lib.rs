@@ -75,7 +75,7 @@ pub use nebula_math::{DVec3, FaceDirection, Vec3};
 pub use pipeline::{ChunkMeshBuffer, MeshOptions, mesh_chunk, mesh_chunks};
 pub use render::{
     ChunkDraw, FrameDraw, RenderMesh, RenderVertex, SKIRT_CORNERS, SURFACE_PARTS, decode_normal, drawn_ranges,
-    encode_normal, lowered, lowered_skirts, part_ranges, side_index, split_high_low, vertex_morph_factor,
+    encode_normal, lowered, lowered_skirts, side_index, split_high_low, vertex_morph_factor,
 };
 pub use seams::{constrain_edge_vertices, generate_skirt, skirt_depth};
 

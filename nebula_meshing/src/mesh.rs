@@ -119,7 +119,7 @@ pub struct ChunkMesh {
     /// triangles the morph keeps at least a voxel tall
     /// ([`ChunkMesh::surface_parts`]); 0 until ordered (every triangle
     /// taken as flattened).
-    pub(crate) steady_walls: [usize; 4],
+    pub(crate) steady_wall_indices: [usize; 4],
     pub(crate) skirt_triangles: usize,
     /// Depth of the skirt generated on each horizontal side (index as in
     /// [`FaceDirection::HORIZONTAL`]), metres; 0 where there is none.
@@ -142,7 +142,7 @@ impl ChunkMesh {
             indices: Vec::new(),
             surface_index_count: 0,
             surface_side_ranges: [0..0, 0..0, 0..0, 0..0, 0..0, 0..0],
-            steady_walls: [0; 4],
+            steady_wall_indices: [0; 4],
             skirt_triangles: 0,
             skirt_depths: [0.0; 4],
             skirt_ranges: [0..0, 0..0, 0..0, 0..0],
@@ -168,8 +168,8 @@ impl ChunkMesh {
         self.surface_side_ranges.clone()
     }
 
-    /// The surface's triangles in the parts a renderer leaves out or draws
-    /// two-sided apart ([`SURFACE_PARTS`](crate::SURFACE_PARTS) index
+    /// The surface's triangles in the parts a renderer may leave out apart
+    /// ([`SURFACE_PARTS`](crate::SURFACE_PARTS) index
     /// ranges of [`ChunkMesh::indices`], together the surface): part
     /// `FaceDirection as usize`, a side's faces (of a wall side, those the
     /// morph keeps at least a voxel tall); part 6 + k, the faces of wall
@@ -182,7 +182,7 @@ impl ChunkMesh {
         parts[..6].clone_from_slice(&self.surface_side_ranges);
         for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
             let range = self.surface_side_ranges[side as usize].clone();
-            let split = range.end - self.steady_walls[k];
+            let split = range.end - self.steady_wall_indices[k];
             parts[side as usize] = split..range.end;
             parts[6 + k] = range.start..split;
         }
@@ -198,7 +198,7 @@ impl ChunkMesh {
     /// between them is at least a voxel at every μ (linear in μ between a
     /// voxel or more at μ = 1 and two or more at μ = 0, rounding keeping
     /// the order).
-    pub(crate) fn order_collapsing_walls(&mut self) {
+    pub(crate) fn order_flattening_walls(&mut self) {
         for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
             let range = self.surface_side_ranges[side as usize].clone();
             // A two-ended partition of whole triangles.
@@ -214,12 +214,12 @@ impl ChunkMesh {
                     }
                 }
             }
-            self.steady_walls[k] = range.end - front;
+            self.steady_wall_indices[k] = range.end - front;
         }
     }
 
     /// Whether the morph may flatten `triangle` (see
-    /// [`ChunkMesh::order_collapsing_walls`]).
+    /// [`ChunkMesh::order_flattening_walls`]).
     fn flattens(&self, triangle: [u32; 3]) -> bool {
         let layer = |index: u32| {
             let index = index as usize;

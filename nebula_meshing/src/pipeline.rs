@@ -177,7 +177,7 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
             constrain_edge_vertices(&mut mesh, side, lod_diff)?;
         }
     }
-    mesh.order_collapsing_walls();
+    mesh.order_flattening_walls();
     let center = mesh.planet_center();
     if options.draw_time_skirts {
         generate_skirts(&mut mesh, [Some(0.0); 4], &center)?;

@@ -187,28 +187,28 @@ pub struct ChunkDraw {
     /// ([`drawn_ranges`]); drawn, they would be back faces, always behind
     /// the front of the closed surface. Of a wall side, the faces the
     /// morph keeps at least a voxel tall ([`ChunkMesh::surface_parts`]).
+    ///
+    /// A face may be left out only where it looks away by enough that the
+    /// rasteriser's rounding cannot turn it: the faces either side of it
+    /// then overlap on screen by its width, and rounding their unshared
+    /// edges apart can open a pinhole. Drawn, a face whose rounded corners
+    /// turn it to the eye is rasterised exactly in such a gap (it shares
+    /// both edges), and culled where there is none.
     pub hidden_sides: u8,
     /// Bit `FaceDirection as usize` set: of a wall side, the faces the
     /// morph flattens are left out too (they shrink with μ, so they must
     /// look away by more to be left out).
     pub hidden_flattening: u8,
-    /// Bit `FaceDirection as usize` set: the faces of that side that are
-    /// drawn are drawn two-sided. A wall may look away from the eye by too
-    /// little to leave out: a step's wall seen almost edge-on, or one the
-    /// morph has nearly flattened, is narrower on screen than the
-    /// rasteriser's rounding, and the faces either side of it only share
-    /// edges with it, not with each other.
-    pub two_sided_sides: u8,
 }
 
 /// How many parts a surface is drawn in ([`ChunkMesh::surface_parts`]).
 pub const SURFACE_PARTS: usize = 10;
 
 impl ChunkDraw {
-    /// Draw constants leaving nothing out and drawing nothing two-sided.
+    /// Draw constants leaving nothing out.
     #[must_use]
     pub fn new(parent_error: f64, skirt_depths: [f32; 4]) -> Self {
-        Self { parent_error, skirt_depths, hidden_sides: 0, hidden_flattening: 0, two_sided_sides: 0 }
+        Self { parent_error, skirt_depths, hidden_sides: 0, hidden_flattening: 0 }
     }
 
     /// The surface parts drawn (bit n: part n of
@@ -217,12 +217,6 @@ impl ChunkDraw {
     pub fn drawn_parts(&self) -> u16 {
         let flattening = !self.hidden_flattening;
         u16::from(!self.hidden_sides) & 0x3f | Self::wall_parts(flattening)
-    }
-
-    /// The surface parts drawn with their back faces too.
-    #[must_use]
-    pub fn two_sided_parts(&self) -> u16 {
-        (u16::from(self.two_sided_sides) & 0x3f | Self::wall_parts(self.two_sided_sides)) & self.drawn_parts()
     }
 
     /// The parts of the flattened faces of the wall sides set in `sides`
@@ -333,9 +327,9 @@ pub struct RenderMesh {
     pub vertices: Vec<RenderVertex>,
     /// The surface's triangle list.
     pub indices: Vec<u32>,
-    /// The surface's triangles in the parts a renderer leaves out or draws
-    /// two-sided apart (as in [`ChunkMesh::surface_parts`]): ranges of
-    /// `indices` that together are `indices`.
+    /// The surface's triangles in the parts a renderer may leave out apart
+    /// (as in [`ChunkMesh::surface_parts`]): ranges of `indices` that
+    /// together are `indices`.
     pub surface_parts: [std::ops::Range<usize>; SURFACE_PARTS],
     /// Outline edges `[a, b]` skirts hang from (vertex indices; the surface
     /// runs a → b along the chunk's side).
@@ -399,23 +393,14 @@ impl RenderMesh {
     }
 }
 
-/// The index ranges of the surface parts `draw` does not hide
-/// ([`part_ranges`]).
+/// The index ranges of the surface parts `draw` does not hide (as in
+/// [`ChunkMesh::surface_parts`]), in index order, adjacent ranges merged.
+/// No allocation: a renderer calls it for every drawn chunk every frame.
 pub fn drawn_ranges(
     surface: &[std::ops::Range<usize>; SURFACE_PARTS],
     draw: &ChunkDraw,
 ) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
-    part_ranges(surface, draw.drawn_parts())
-}
-
-/// The index ranges of the surface parts whose bit is set in `parts` (as
-/// in [`ChunkDraw::drawn_parts`]), in index order, adjacent ranges
-/// merged. No allocation: a renderer calls it for every drawn chunk every
-/// frame.
-pub fn part_ranges(
-    surface: &[std::ops::Range<usize>; SURFACE_PARTS],
-    parts: u16,
-) -> impl Iterator<Item = std::ops::Range<usize>> + use<> {
+    let parts = draw.drawn_parts();
     let mut ranges: [std::ops::Range<usize>; SURFACE_PARTS] = Default::default();
     let mut count = 0;
     let shown = surface.iter().enumerate().filter(|(part, _)| parts & (1 << part) != 0);

@@ -385,13 +385,8 @@ fn zips_are_drawn_whatever_sides_are_culled() {
         // The sides a renderer culls are the horizontal ones (a column's
         // walls; the faces looking up or down are always drawn).
         for hidden_sides in 0..16u8 {
-            let draw = ChunkDraw {
-                parent_error: 1.0,
-                skirt_depths: [0.0; 4],
-                hidden_sides,
-                hidden_flattening: hidden_sides,
-                two_sided_sides: 0,
-            };
+            let draw =
+                ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening: hidden_sides };
             let ranges: Vec<_> = drawn_ranges(&mesh.surface_parts(), &draw).collect();
             for &start in &zip_starts {
                 assert!(

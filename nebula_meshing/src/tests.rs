@@ -1031,7 +1031,6 @@ proptest! {
         lengths in proptest::collection::vec(0usize..5, SURFACE_PARTS),
         hidden_sides in 0u8..64,
         hidden_flattening in 0u8..64,
-        two_sided_sides in 0u8..64,
     ) {
         // Ten consecutive parts (the sides, then the walls' flattening
         // faces) in a shuffled order of index ranges; what is drawn is
@@ -1047,7 +1046,7 @@ proptest! {
         let part = |n: usize| starts[n]..starts[n] + lengths[n];
         let surface: [std::ops::Range<usize>; SURFACE_PARTS] = std::array::from_fn(part);
         let draw =
-            ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening, two_sided_sides };
+            ChunkDraw { parent_error: 0.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening };
         let ranges: Vec<_> = drawn_ranges(&surface, &draw).collect();
         prop_assert!(ranges.windows(2).all(|w| w[0].end < w[1].start), "{ranges:?}");
         prop_assert!(ranges.iter().all(|r| !r.is_empty()));
@@ -1057,15 +1056,7 @@ proptest! {
         let side_of = |n: usize| if n < 6 { n } else { n - 6 };
         let hidden = |n: usize| if n < 6 { hidden_sides } else { hidden_flattening } & (1 << side_of(n)) != 0;
         let shown: HashSet<usize> = (0..SURFACE_PARTS).filter(|&n| !hidden(n)).flat_map(part).collect();
-        prop_assert_eq!(&drawn, &shown);
-        // The back faces a renderer draws too: those of the sides drawn
-        // two-sided, never of a hidden part.
-        let two: HashSet<usize> = part_ranges(&surface, draw.two_sided_parts()).flatten().collect();
-        let two_sided_shown: HashSet<usize> = (0..SURFACE_PARTS)
-            .filter(|&n| !hidden(n) && two_sided_sides & (1 << side_of(n)) != 0)
-            .flat_map(part)
-            .collect();
-        prop_assert_eq!(two, two_sided_shown);
+        prop_assert_eq!(drawn, shown);
     }
 }
 
@@ -1163,7 +1154,6 @@ fn skirts_drawn_from_outline_edges_are_the_skirt_triangles_of_the_mesh() {
                 skirt_depths: std::array::from_fn(|_| if unit() < 0.4 { 0.0 } else { (unit() * 20.0) as f32 }),
                 hidden_sides: (unit() * 64.0) as u8,
                 hidden_flattening: (unit() * 64.0) as u8,
-                two_sided_sides: (unit() * 64.0) as u8,
             };
             let render = mesh.render_mesh();
             let vertices = mesh.render_vertices();

@@ -8,12 +8,9 @@
 //! - [`PlanetRenderer::prepare`] once a frame writes the frame's constants,
 //!   a table of per-chunk constants (read by the instance index) and the
 //!   frame's draws as indirect commands; [`PlanetRenderer::draw_terrain`]
-//!   issues per page one `multi_draw_indexed_indirect` for the surfaces,
-//!   one for the back faces of the sides a chunk draws two-sided (walls
-//!   looking away too narrowly on screen to leave out, which close the
-//!   sliver between the faces either side of them; pushed back in depth so
-//!   that they only fill it) and one `multi_draw_indirect` for the skirts:
-//!   a frame of 20,000 chunks is a handful of draw calls. Where the device lacks
+//!   issues per page one `multi_draw_indexed_indirect` for the surfaces
+//!   and one `multi_draw_indirect` for the skirts: a frame of 20,000
+//!   chunks is a handful of draw calls. Where the device lacks
 //!   `INDIRECT_FIRST_INSTANCE` every chunk range is its own draw (counted
 //!   in [`FrameStats::draw_calls`]).
 //! - The vertex shaders place every vertex camera-relative from f64 split

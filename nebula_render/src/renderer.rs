@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
-use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, SURFACE_PARTS, lowered_skirts, part_ranges, split_high_low};
+use nebula_meshing::{ChunkDraw, FrameDraw, RenderMesh, SURFACE_PARTS, drawn_ranges, lowered_skirts, split_high_low};
 use nebula_voxel::{ChunkKey, ProceduralPlanet, VoxelSource};
 use wgpu::util::{DrawIndexedIndirectArgs, DrawIndirectArgs};
 
@@ -366,38 +366,26 @@ const INDEX_FORMATS: [wgpu::IndexFormat; 2] = [wgpu::IndexFormat::Uint32, wgpu::
 #[derive(Clone, Copy, Debug)]
 struct PageDraws {
     page: usize,
-    kind: DrawKind,
+    /// `Some`: surface ranges of meshes with this index format; `None`:
+    /// skirts.
+    surface: Option<wgpu::IndexFormat>,
     first: u32,
     count: u32,
-}
-
-/// What a [`PageDraws`] draws.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum DrawKind {
-    /// Surface ranges of meshes with this index format: their front
-    /// faces, or (`back`) the back faces of the sides drawn two-sided
-    /// (`ChunkDraw::two_sided_sides`).
-    Surface { format: wgpu::IndexFormat, back: bool },
-    /// Skirts.
-    Skirts,
 }
 
 /// One page's draws of a frame as they are made.
 #[derive(Default)]
 struct PageBatch {
-    /// Surface ranges, front faces then back faces, by index format (as
-    /// in [`INDEX_FORMATS`]).
-    surface: [[Vec<DrawIndexedIndirectArgs>; 2]; 2],
+    /// Surface ranges by index format (as in [`INDEX_FORMATS`]).
+    surface: [Vec<DrawIndexedIndirectArgs>; 2],
     skirts: Vec<DrawIndirectArgs>,
 }
 
-/// The terrain's pipelines for one way of drawing: surfaces (indexed,
-/// from a page's vertices), their front faces and the back faces of the
-/// sides drawn two-sided, and skirts (no indices: the quad under each
+/// The terrain's two pipelines for one way of drawing: surfaces (indexed,
+/// from a page's vertices) and skirts (no indices: the quad under each
 /// outline edge, from the page's edges and vertices).
 struct TerrainPipelines {
     surface: wgpu::RenderPipeline,
-    back_faces: wgpu::RenderPipeline,
     skirts: wgpu::RenderPipeline,
 }
 
@@ -668,26 +656,11 @@ impl PlanetRenderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        // `back` draws back faces only: those of the sides a chunk draws
-        // two-sided, walls looking away from the eye too narrowly on
-        // screen to leave out (`ChunkDraw::two_sided_sides`), there to
-        // close the sliver between the faces either side of them. Their
-        // depth is pushed back by a pixel's worth of their slope, so that
-        // in the sliver the face in front (drawn first, its depth within
-        // rounding of theirs along the edge they share) keeps the pixel;
-        // the fragment shader lights a back face as its front.
         let make_pipeline = |entry_point: &str,
                              buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
-                             back: bool,
                              polygon_mode: wgpu::PolygonMode,
                              samples: u32,
                              label: &str| {
-            // Reverse Z: farther is less.
-            let bias = if back {
-                wgpu::DepthBiasState { constant: -1, slope_scale: -1.0, clamp: 0.0 }
-            } else {
-                wgpu::DepthBiasState::default()
-            };
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&layout),
@@ -700,7 +673,7 @@ impl PlanetRenderer {
                 primitive: wgpu::PrimitiveState {
                     topology: wgpu::PrimitiveTopology::TriangleList,
                     front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: Some(if back { wgpu::Face::Front } else { wgpu::Face::Back }),
+                    cull_mode: Some(wgpu::Face::Back),
                     polygon_mode,
                     ..Default::default()
                 },
@@ -711,7 +684,7 @@ impl PlanetRenderer {
                     depth_write_enabled: Some(true),
                     depth_compare: Some(wgpu::CompareFunction::Greater),
                     stencil: wgpu::StencilState::default(),
-                    bias,
+                    bias: wgpu::DepthBiasState::default(),
                 }),
                 multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
                 fragment: Some(wgpu::FragmentState {
@@ -736,16 +709,8 @@ impl PlanetRenderer {
             })
         };
         let make_pipelines = |polygon_mode: wgpu::PolygonMode, samples: u32, label: &str| TerrainPipelines {
-            surface: make_pipeline("vs_main", &vertex_buffer, false, polygon_mode, samples, label),
-            back_faces: make_pipeline(
-                "vs_main",
-                &vertex_buffer,
-                true,
-                polygon_mode,
-                samples,
-                &format!("{label}, back faces"),
-            ),
-            skirts: make_pipeline("vs_skirt", &[], false, polygon_mode, samples, &format!("{label}, skirts")),
+            surface: make_pipeline("vs_main", &vertex_buffer, polygon_mode, samples, label),
+            skirts: make_pipeline("vs_skirt", &[], polygon_mode, samples, &format!("{label}, skirts")),
         };
         let pipeline = make_pipelines(wgpu::PolygonMode::Fill, 1, "nebula terrain pipeline");
         let make_sky_layout = |multisampled: bool| {
@@ -1102,7 +1067,7 @@ impl PlanetRenderer {
         chunk_uniforms.clear();
         boxes.clear();
         for batch in by_page.iter_mut() {
-            batch.surface.iter_mut().flatten().for_each(Vec::clear);
+            batch.surface.iter_mut().for_each(Vec::clear);
             batch.skirts.clear();
         }
         for (mesh, draw) in meshes {
@@ -1128,18 +1093,14 @@ impl PlanetRenderer {
             let format = usize::from(slot.index_format() == INDEX_FORMATS[1]);
             let (first, base) = (slot.first_index(), slot.first_vertex() as i32);
             let batch = &mut by_page[slot.page];
-            let surface = mesh.surface_parts.map(widen_range);
-            // Every part drawn, then the back faces of those drawn two-sided.
-            for (back, parts) in [draw.drawn_parts(), draw.two_sided_parts()].into_iter().enumerate() {
-                for range in part_ranges(&surface, parts) {
-                    batch.surface[back][format].push(DrawIndexedIndirectArgs {
-                        index_count: range.len() as u32,
-                        instance_count: 1,
-                        first_index: first + range.start as u32,
-                        base_vertex: base,
-                        first_instance: instance,
-                    });
-                }
+            for range in drawn_ranges(&mesh.surface_parts.map(widen_range), &draw) {
+                batch.surface[format].push(DrawIndexedIndirectArgs {
+                    index_count: range.len() as u32,
+                    instance_count: 1,
+                    first_index: first + range.start as u32,
+                    base_vertex: base,
+                    first_instance: instance,
+                });
             }
             // A skirt's vertex index is its side, then 6 per edge and the
             // corner (the skirt shader reads them back).
@@ -1163,22 +1124,16 @@ impl PlanetRenderer {
         self.draw_args.clear();
         self.skirt_args.clear();
         self.page_draws.clear();
-        // Front faces, then back faces, then skirts: two pipeline changes
-        // a frame.
-        for back in [false, true] {
-            for (page, batch) in by_page.iter().enumerate() {
-                let formats = INDEX_FORMATS.iter().zip(&batch.surface[usize::from(back)]);
-                for (&format, draws) in formats.filter(|(_, d)| !d.is_empty()) {
-                    let first = self.draw_args.len() as u32;
-                    let kind = DrawKind::Surface { format, back };
-                    self.page_draws.push(PageDraws { page, kind, first, count: draws.len() as u32 });
-                    self.draw_args.extend_from_slice(draws);
-                }
+        for (page, batch) in by_page.iter().enumerate() {
+            for (&index_format, draws) in INDEX_FORMATS.iter().zip(&batch.surface).filter(|(_, d)| !d.is_empty()) {
+                let first = self.draw_args.len() as u32;
+                self.page_draws.push(PageDraws { page, surface: Some(index_format), first, count: draws.len() as u32 });
+                self.draw_args.extend_from_slice(draws);
             }
         }
         for (page, batch) in by_page.iter().enumerate().filter(|(_, b)| !b.skirts.is_empty()) {
             let first = self.skirt_args.len() as u32;
-            self.page_draws.push(PageDraws { page, kind: DrawKind::Skirts, first, count: batch.skirts.len() as u32 });
+            self.page_draws.push(PageDraws { page, surface: None, first, count: batch.skirts.len() as u32 });
             self.skirt_args.extend_from_slice(&batch.skirts);
         }
         // Each page the vertex shaders may read, bound once.
@@ -1367,27 +1322,21 @@ impl PlanetRenderer {
         let block_start = block * (surface_bytes + self.skirt_args.len() as u64 * SKIRT_ARGS_BYTES);
         let skirts_from = block_start + surface_bytes;
         let mut calls = 0;
-        // The surfaces (indexed), front faces then back faces, then the
-        // skirts.
-        let mut pipeline = None;
+        // The surfaces (indexed), then the skirts (one pipeline change).
+        let mut drawing_surfaces = None;
         for draws in &self.page_draws {
-            let wanted = match draws.kind {
-                DrawKind::Surface { back: false, .. } => &pipelines.surface,
-                DrawKind::Surface { back: true, .. } => &pipelines.back_faces,
-                DrawKind::Skirts => &pipelines.skirts,
-            };
-            if pipeline != Some(wanted) {
-                pass.set_pipeline(wanted);
-                pipeline = Some(wanted);
+            if drawing_surfaces != Some(draws.surface.is_some()) {
+                pass.set_pipeline(if draws.surface.is_some() { &pipelines.surface } else { &pipelines.skirts });
+                drawing_surfaces = Some(draws.surface.is_some());
             }
             pass.set_bind_group(2, &self.page_groups[draws.page], &[]);
             let first = draws.first as usize;
             let count = draws.count as usize;
-            match draws.kind {
-                DrawKind::Surface { format, .. } => {
+            match draws.surface {
+                Some(index_format) => {
                     let buffer = &pages.page(draws.page).buffer;
                     pass.set_vertex_buffer(0, buffer.slice(..));
-                    pass.set_index_buffer(buffer.slice(..), format);
+                    pass.set_index_buffer(buffer.slice(..), index_format);
                     if self.indirect_draws {
                         let offset = block_start + u64::from(draws.first) * DRAW_ARGS_BYTES;
                         pass.multi_draw_indexed_indirect(&self.indirect, offset, draws.count);
@@ -1403,7 +1352,7 @@ impl PlanetRenderer {
                         }
                     }
                 }
-                DrawKind::Skirts => {
+                None => {
                     if self.indirect_draws {
                         let offset = skirts_from + u64::from(draws.first) * SKIRT_ARGS_BYTES;
                         pass.multi_draw_indirect(&self.indirect, offset, draws.count);

@@ -312,10 +312,8 @@ fn lighting(n: vec3<f32>, up: vec3<f32>) -> vec3<f32> {
 }
 
 @fragment
-fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> TerrainOut {
-    // The surface is drawn two-sided (a back face shows only in a
-    // sub-pixel sliver it closes): lit as the face it backs.
-    let n = select(-1.0, 1.0, front) * normalize(in.normal);
+fn fs_main(in: VertexOut) -> TerrainOut {
+    let n = normalize(in.normal);
     let up = normalize(in.relative + frame.eye_high.xyz + frame.eye_low.xyz);
     // A voxel's top (bottom) is the sphere shell above (below) it: lit by
     // the radial up, not by its flat quad's normal, which tilts by the

@@ -145,9 +145,8 @@ pub struct DrawOptions {
     /// Leave out a chunk's side walls when they all look away from the eye
     /// by enough to be at least [`SLIVER_PX`] wide on screen
     /// (`ChunkDraw::hidden_sides`): back faces, never seen, about a tenth
-    /// of the triangles; and draw the back faces of the sides looking away
-    /// by less (`ChunkDraw::two_sided_sides`), so that no rounding opens a
-    /// pinhole beside them. Off: every side drawn, its back faces culled.
+    /// of the triangles. Off: every side drawn (the rasteriser culls the
+    /// back faces).
     pub cull_back_sides: bool,
     /// Draw the leaves that the ground in front hides, bearing by bearing
     /// ([`TerrainHorizon`](nebula_lod::TerrainHorizon)), as their coarsest
@@ -1697,8 +1696,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let MeshCache { stale, gained, .. } = &mut *cache;
         gained.retain(|key| stale.contains_key(key));
         let (voxels, eye, seams, options) = (&*self.voxels, self.eye.position, self.seams, self.options);
-        if options.cull_back_sides {
-            for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
+        for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
+            let facing = if options.cull_back_sides {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
                 let scale = WallScale {
                     eye,
@@ -1707,15 +1706,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     voxel_edge: voxels.layout().voxel_edge(column.lod),
                     parent_error: chunk_draw.parent_error,
                 };
-                // A column not cached (none drawn) draws every wall.
-                let facing = match cached.or_else(|| cache.columns.get(column)) {
+                // A column not cached (none drawn) draws every side.
+                match cached.or_else(|| cache.columns.get(column)) {
                     Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
-                    None => SideFacing { hidden: 0, hidden_flattening: 0, two_sided: !0 },
-                };
-                chunk_draw.hidden_sides = facing.hidden;
-                chunk_draw.hidden_flattening = facing.hidden_flattening;
-                chunk_draw.two_sided_sides = facing.two_sided;
-            }
+                    None => SideFacing::NOTHING_HIDDEN,
+                }
+            } else {
+                SideFacing::NOTHING_HIDDEN
+            };
+            chunk_draw.hidden_sides = facing.hidden;
+            chunk_draw.hidden_flattening = facing.hidden_flattening;
         }
         let mut reseamed = HashSet::default();
         if seams.meshes_for_neighbours() {
@@ -2656,11 +2656,12 @@ pub(crate) struct ColumnSides {
 /// edge at the wall's foot) no longer share an edge: they overlap by the
 /// wall's width on screen, and the rasteriser snaps each edge's corners
 /// on its own (to 1/256 px with 8 sub-pixel bits: lavapipe and desktop
-/// GPUs; this is four times that). A wall narrower than this stays in and
-/// its back faces are drawn too (`ChunkDraw::two_sided_sides`), so the
-/// strip nearer face, wall, farther face shares every edge and no rounding
-/// opens a pinhole: a step that the morph has nearly collapsed, or one
-/// seen almost edge-on.
+/// GPUs; this is four times that), which can pull them apart. A wall
+/// narrower than this (a step that the morph has nearly flattened, or one
+/// seen almost edge-on) is drawn: the strip nearer face, wall, farther
+/// face shares every edge, and where rounding opens a gap between the two
+/// faces it turns the wall's rounded corners to face the eye, so the
+/// rasteriser fills exactly that gap with it instead of culling it.
 pub const SLIVER_PX: f64 = 1.0 / 64.0;
 
 /// What [`ColumnSides::facing`] needs of the frame and the column's
@@ -2721,10 +2722,10 @@ impl ColumnSides {
         Some((steady, if mu > 0.0 { steady / mu } else { f64::INFINITY }))
     }
 
-    /// Which sides to leave out and which to draw two-sided (bit
-    /// `FaceDirection as usize`), the radial faces looking down among
-    /// them where the column's faces lie under `top` (metres from the
-    /// centre) and its patch's directions are known.
+    /// Which sides to leave out (bit `FaceDirection as usize`), the radial
+    /// faces looking down among them where the column's faces lie under
+    /// `top` (metres from the centre) and its patch's directions are
+    /// known.
     ///
     /// A wall looking towards +i lies in the plane through the planet
     /// centre of its lattice line `i = c` and faces the eye only when the
@@ -2733,65 +2734,50 @@ impl ColumnSides {
     /// is behind all of them when it is behind the two outermost. A side's
     /// walls are left out when the eye is behind them by
     /// [`Self::wall_margins`], so that every wall left out is at least
-    /// [`SLIVER_PX`] wide on screen (a millimetre at least, so rounding
-    /// never hides a wall seen edge-on): those the morph keeps a voxel
-    /// tall by the first margin, those it flattens by the second. What
-    /// is drawn of a side that looks away by less (or that the eye stands
-    /// between) is drawn two-sided.
+    /// [`SLIVER_PX`] wide on screen (a millimetre at least): those the
+    /// morph keeps a voxel tall by the first margin, those it flattens by
+    /// the second. A wall looking away by less is drawn, and the
+    /// rasteriser culls it unless its rounded corners turn it to the eye,
+    /// which they do exactly where the faces either side of it would open
+    /// a gap (`ChunkDraw::hidden_sides`).
     ///
     /// A face looking down (a ceiling, an overhang's underside) at a
     /// point v with normal −n (n within the patch's directions: its
     /// corners are on one radial layer) faces the eye only when eye·n <
     /// v·n ≤ top: an eye above `top` by the flattening margin in every
-    /// direction of the patch sees none; elsewhere they are drawn
-    /// two-sided. (Faces looking up are never left out: stitched seams'
-    /// zero-area zips lie in their range.)
+    /// direction of the patch sees none. (Faces looking up are never left
+    /// out: stitched seams' zero-area zips lie in their range.)
     pub(crate) fn facing(&self, scale: &WallScale, top: Option<f64>) -> SideFacing {
-        const DOWN: u8 = 1 << FaceDirection::NegY as u8;
         let Some((steady, flattening)) = self.wall_margins(scale) else {
-            let walls = FaceDirection::HORIZONTAL.iter().fold(0, |bits, &side| bits | 1 << side as u8);
-            return SideFacing { hidden: 0, hidden_flattening: 0, two_sided: walls | DOWN };
+            return SideFacing::NOTHING_HIDDEN;
         };
         let eye = scale.eye;
-        let mut facing = SideFacing { hidden: 0, hidden_flattening: 0, two_sided: 0 };
+        let mut facing = SideFacing::NOTHING_HIDDEN;
         for (planes, positive, negative) in
             [(self.i, FaceDirection::PosX, FaceDirection::NegX), (self.j, FaceDirection::PosZ, FaceDirection::NegZ)]
         {
             // How far the eye is behind the outermost planes of the walls
             // looking towards `positive` (in front, for `negative`): the
-            // least and the most.
+            // least of the two.
             let [a, b] = planes.map(|normal| -eye.dot(normal));
-            for (bit, least, most) in
-                [(1 << positive as u8, a.min(b), a.max(b)), (1 << negative as u8, -a.max(b), -a.min(b))]
-            {
-                if least > flattening {
+            for (bit, behind) in [(1 << positive as u8, a.min(b)), (1 << negative as u8, -a.max(b))] {
+                if behind > steady {
                     facing.hidden |= bit;
+                }
+                if behind > flattening {
                     facing.hidden_flattening |= bit;
-                } else if least > steady {
-                    facing.hidden |= bit;
-                    facing.two_sided |= bit;
-                } else if most > -steady {
-                    // Some wall of this side may look away, by less than
-                    // the margin (or the eye stands between the planes).
-                    facing.two_sided |= bit;
                 }
             }
         }
-        let above = match (self.directions, top) {
-            (Some((centre, cos_radius, sin_radius)), Some(top)) => {
-                // |eye|·cos(θ + ρ), θ the eye's angle from the middle and
-                // ρ the patch's angular radius: the least eye·n over the
-                // patch (no trigonometry every frame for every column).
-                let along = eye.dot(centre);
-                let across = (eye.length_squared() - along * along).max(0.0).sqrt();
-                along * cos_radius - across * sin_radius > top + flattening
+        if let (Some((centre, cos_radius, sin_radius)), Some(top)) = (self.directions, top) {
+            // |eye|·cos(θ + ρ), θ the eye's angle from the middle and ρ the
+            // patch's angular radius: the least eye·n over the patch (no
+            // trigonometry every frame for every column).
+            let along = eye.dot(centre);
+            let across = (eye.length_squared() - along * along).max(0.0).sqrt();
+            if along * cos_radius - across * sin_radius > top + flattening {
+                facing.hidden |= 1 << FaceDirection::NegY as u8;
             }
-            _ => false,
-        };
-        if above {
-            facing.hidden |= DOWN;
-        } else {
-            facing.two_sided |= DOWN;
         }
         facing
     }
@@ -2805,8 +2791,12 @@ pub(crate) struct SideFacing {
     /// Of the walls, the faces the morph flattens left out too
     /// (`ChunkDraw::hidden_flattening`).
     pub(crate) hidden_flattening: u8,
-    /// Drawn with no face culled (`ChunkDraw::two_sided_sides`).
-    pub(crate) two_sided: u8,
+}
+
+impl SideFacing {
+    /// Nothing left out: where nothing is known of the column's extent,
+    /// or with `DrawOptions::cull_back_sides` off.
+    pub(crate) const NOTHING_HIDDEN: Self = Self { hidden: 0, hidden_flattening: 0 };
 }
 
 /// Why a [`Streamer`] could not start or take new voxels.

@@ -875,10 +875,11 @@ fn a_low_sun_turns_the_sky_orange() {
 }
 
 /// Leaving out the side walls that look away from the eye
-/// (`DrawOptions::cull_back_sides`, with the back faces of those looking
-/// away too narrowly drawn) changes no pixel and draws fewer triangles:
-/// they are back faces of a closed surface. Earth, 300 m over
-/// the ground looking 20° down, and the small planet from orbit.
+/// (`DrawOptions::cull_back_sides`; only those wide enough on screen that
+/// rounding cannot turn them) changes no pixel and draws fewer
+/// triangles: they are back faces of a closed surface, which the
+/// rasteriser culls when drawn. Earth, 300 m over the ground looking 20°
+/// down, and the small planet from orbit.
 #[test]
 fn culled_back_sides_change_no_pixel() {
     if !adapter_or_skip("back sides") {
