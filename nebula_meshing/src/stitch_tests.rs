@@ -382,8 +382,9 @@ fn zips_are_drawn_whatever_sides_are_culled() {
             })
             .collect();
         zips += zip_starts.len();
-        // The sides a renderer culls are the horizontal ones (a column's
-        // walls; the faces looking up or down are always drawn).
+        // Every way of leaving out a column's walls (and their flattening
+        // faces) draws the zips: they lie among the faces looking up,
+        // which are never left out.
         for hidden_sides in 0..16u8 {
             let draw =
                 ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening: hidden_sides };
