@@ -194,10 +194,13 @@ impl ChunkMesh {
     /// triangle is taken as flattened unless each corner is a lattice
     /// point of the surface, none constrained onto a coarser neighbour's
     /// lattice, and their morph targets (their local coordinates rounded
-    /// down to even) lie on two radial layers at least: then its height
-    /// between them is at least a voxel at every μ (linear in μ between a
-    /// voxel or more at μ = 1 and two or more at μ = 0, rounding keeping
-    /// the order).
+    /// down to even) lie on two radial layers at least and two lattice
+    /// lines along the wall: then its height and its length between them
+    /// are at least a voxel at every μ (linear in μ between a voxel or
+    /// more at μ = 1 and two or more at μ = 0, rounding keeping the
+    /// order). A wall left out must be wide on screen both ways: across
+    /// its height between the faces above and below it, across its length
+    /// between the walls at its ends.
     pub(crate) fn order_flattening_walls(&mut self) {
         for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
             let range = self.surface_side_ranges[side as usize].clone();
@@ -205,7 +208,7 @@ impl ChunkMesh {
             let (mut front, mut back) = (range.start, range.end);
             while front < back {
                 let triangle = [self.indices[front], self.indices[front + 1], self.indices[front + 2]];
-                if self.flattens(triangle) {
+                if self.flattens(triangle, side) {
                     front += 3;
                 } else {
                     back -= 3;
@@ -218,18 +221,23 @@ impl ChunkMesh {
         }
     }
 
-    /// Whether the morph may flatten `triangle` (see
+    /// Whether the morph may flatten `triangle`, of a wall looking
+    /// towards `side`, to no height or no length (see
     /// [`ChunkMesh::order_flattening_walls`]).
-    fn flattens(&self, triangle: [u32; 3]) -> bool {
-        let layer = |index: u32| {
+    fn flattens(&self, triangle: [u32; 3], side: FaceDirection) -> bool {
+        // The coordinate along the wall: z for walls looking along x.
+        let along = if side.axis() == 0 { 2 } else { 0 };
+        let target = |index: u32| {
             let index = index as usize;
             match self.sources.get(index) {
-                Some(VertexSource::Surface { local, .. }) if !self.is_constrained(index) => Some(local[1] & !1),
+                Some(VertexSource::Surface { local, .. }) if !self.is_constrained(index) => {
+                    Some([local[1] & !1, local[along] & !1])
+                }
                 _ => None,
             }
         };
-        match triangle.map(layer) {
-            [Some(a), Some(b), Some(c)] => a == b && b == c,
+        match triangle.map(target) {
+            [Some(a), Some(b), Some(c)] => (0..2).any(|k| a[k] == b[k] && b[k] == c[k]),
             _ => true,
         }
     }

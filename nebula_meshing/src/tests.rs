@@ -1062,18 +1062,21 @@ proptest! {
 
 /// Only the wall faces a mesh keeps apart as flattening
 /// (`ChunkMesh::surface_parts`, parts 6–9) can come nearer than a voxel to
-/// no height as they morph, so only those must look away by more before a
-/// renderer leaves them out. Over Earth chunks at LODs 0–8, meshed for
-/// streaming, with edges constrained to a coarser neighbour and stitched:
-/// every other wall triangle spans at least a voxel of height at every μ
-/// (0 to 1 by twentieths), while the flattening ones come to no height at
-/// μ = 0 (over a thousand: the split is what keeps the others' bound).
+/// no height or no length as they morph, so only those must look away by
+/// more before a renderer leaves them out. Over Earth chunks at LODs 0–8,
+/// meshed for streaming, with edges constrained to a coarser neighbour and
+/// stitched: every other wall triangle spans at least a voxel of height
+/// and half a voxel across (the lattice's cells are smaller than the
+/// nominal voxel towards a cube face's corners) at every μ (0 to 1 by
+/// twentieths), while most flattening ones come to no height at μ = 0.
+/// Classified by height alone, a thousand of the others come shorter.
 #[test]
 fn only_the_faces_kept_apart_as_flattening_flatten() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
     let mut state = 0xf1a7_u64;
     let mut unit = || nebula_math::unit_random(&mut state);
-    let (mut steady, mut flattening, mut flattened, mut too_low) = (0, 0, 0, 0);
+    let (mut steady, mut flattening, mut flattened, mut too_low, mut too_short) = (0, 0, 0, 0, 0);
+    let mut shortest_seen = f64::MAX;
     let mut buffer = ChunkMeshBuffer::new();
     for case in 0..60u32 {
         let lod = [0, 1, 2, 4, 8][case as usize % 5];
@@ -1103,11 +1106,27 @@ fn only_the_faces_kept_apart_as_flattening_flatten() {
                 });
                 radii.iter().fold(f64::MIN, |a, &b| a.max(b)) - radii.iter().fold(f64::MAX, |a, &b| a.min(b))
             };
+            // Its extent across the radial direction (along the wall): the
+            // longest of its sides with the radial parts taken out.
+            let length = |triangle: &[u32], mu: f64| {
+                let placed = [0, 1, 2].map(|c| {
+                    let i = triangle[c] as usize;
+                    let target = mesh.morph_world[i];
+                    target + (mesh.world[i] - target) * mu
+                });
+                let up = (placed[0] + placed[1] + placed[2]).normalize();
+                let flat = placed.map(|p| p - up * p.dot(up));
+                [(0, 1), (1, 2), (2, 0)].map(|(a, b)| flat[a].distance(flat[b])).into_iter().fold(0.0, f64::max)
+            };
             for side in FaceDirection::HORIZONTAL {
                 for triangle in mesh.indices[parts[side as usize].clone()].chunks_exact(3) {
                     steady += 1;
-                    let lowest = (0..=20).map(|n| height(triangle, f64::from(n) / 20.0)).fold(f64::MAX, f64::min);
+                    let mus = (0..=20).map(|n| f64::from(n) / 20.0);
+                    let lowest = mus.clone().map(|mu| height(triangle, mu)).fold(f64::MAX, f64::min);
                     too_low += usize::from(lowest < 0.999 * voxel);
+                    let shortest = mus.map(|mu| length(triangle, mu)).fold(f64::MAX, f64::min);
+                    shortest_seen = shortest_seen.min(shortest / voxel);
+                    too_short += usize::from(shortest < 0.5 * voxel);
                 }
                 for triangle in mesh.indices[parts[6 + side as usize].clone()].chunks_exact(3) {
                     flattening += 1;
@@ -1117,10 +1136,12 @@ fn only_the_faces_kept_apart_as_flattening_flatten() {
         }
     }
     println!(
-        "{steady} wall triangles kept a voxel tall ({too_low} lower), {flattening} flattening ({flattened} flat at μ = 0)"
+        "{steady} wall triangles kept a voxel tall ({too_low} lower) and half a voxel long ({too_short} shorter, the \
+         shortest {shortest_seen:.2} voxels), {flattening} flattening ({flattened} flat at μ = 0)"
     );
     assert!(steady > 1_000 && flattened > 1_000, "{steady} steady, {flattened} flattened");
     assert_eq!(too_low, 0, "a wall triangle not kept apart came lower than a voxel");
+    assert_eq!(too_short, 0, "a wall triangle not kept apart came shorter than half a voxel");
 }
 
 #[test]
