@@ -1696,8 +1696,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let MeshCache { stale, gained, .. } = &mut *cache;
         gained.retain(|key| stale.contains_key(key));
         let (voxels, eye, seams, options) = (&*self.voxels, self.eye.position, self.seams, self.options);
-        for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
-            let facing = if options.cull_back_sides {
+        if options.cull_back_sides {
+            for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
                 let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
                 let scale = WallScale {
                     eye,
@@ -1707,15 +1707,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                     parent_error: chunk_draw.parent_error,
                 };
                 // A column not cached (none drawn) draws every side.
-                match cached.or_else(|| cache.columns.get(column)) {
+                let facing = match cached.or_else(|| cache.columns.get(column)) {
                     Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
                     None => SideFacing::NOTHING_HIDDEN,
-                }
-            } else {
-                SideFacing::NOTHING_HIDDEN
-            };
-            chunk_draw.hidden_sides = facing.hidden;
-            chunk_draw.hidden_flattening = facing.hidden_flattening;
+                };
+                chunk_draw.hidden_sides = facing.hidden;
+                chunk_draw.hidden_flattening = facing.hidden_flattening;
+            }
         }
         let mut reseamed = HashSet::default();
         if seams.meshes_for_neighbours() {
@@ -2794,8 +2792,8 @@ pub(crate) struct SideFacing {
 }
 
 impl SideFacing {
-    /// Nothing left out: where nothing is known of the column's extent,
-    /// or with `DrawOptions::cull_back_sides` off.
+    /// Nothing left out: where nothing is known of the column or its
+    /// extent.
     pub(crate) const NOTHING_HIDDEN: Self = Self { hidden: 0, hidden_flattening: 0 };
 }
 
