@@ -1677,7 +1677,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         } = plan;
         let frame = self.frame;
         // The τ and morph the frame is drawn with: how wide its walls look.
-        let (screen, morph) = (*self.tree.screen_space(), self.frame_draw(self.eye.position).morph);
+        let (screen, morph) = (*self.tree.screen_space(), self.morphs());
         let cache = &mut self.cache;
         cache.mark_used(&used, frame);
         if !new_columns.is_empty() {
@@ -2087,8 +2087,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn frame_draw(&self, eye: nebula_math::DVec3) -> FrameDraw {
         // The τ the tree refines to: the morph must follow the same one.
         let screen = self.tree.screen_space();
-        let morph = self.options.morph != MorphRule::Off && self.seams.morphs();
-        FrameDraw::new(eye, screen.k(), screen.threshold_px(), morph)
+        FrameDraw::new(eye, screen.k(), screen.threshold_px(), self.morphs())
+    }
+
+    /// Whether the frame's vertices geomorph (the draw options and the
+    /// seam strategy allow it).
+    fn morphs(&self) -> bool {
+        self.options.morph != MorphRule::Off && self.seams.morphs()
     }
 
     /// Changes the view the LOD tree refines and culls for: τ, the screen
