@@ -807,22 +807,22 @@ impl ColumnsInHand {
     }
 }
 
-struct MeshResult<H> {
-    key: ChunkKey,
+pub(crate) struct MeshResult<H> {
+    pub(crate) key: ChunkKey,
     /// The seams it was made for.
-    seams: SeamStrategy,
-    relations: SideRelations,
+    pub(crate) seams: SeamStrategy,
+    pub(crate) relations: SideRelations,
     /// The voxel generation the mesh was made from.
-    generation: u64,
+    pub(crate) generation: u64,
     /// The mesh, or why there is none (an error, or a panic in the voxel
     /// source or the mesher, as text).
-    result: Result<Made<H>, String>,
-    millis: f64,
+    pub(crate) result: Result<Made<H>, String>,
+    pub(crate) millis: f64,
 }
 
 /// A finished mesh: to be uploaded by the frame thread, or uploaded
 /// already by the worker that made it ([`Streamer::set_uploader`]).
-enum Made<H> {
+pub(crate) enum Made<H> {
     /// Boxed: a render mesh's head (its part and skirt ranges) is a few
     /// hundred bytes, a job's result is moved through channels.
     Mesh(Box<RenderMesh>),
@@ -1098,7 +1098,7 @@ thread_local! {
 pub struct Streamer<S, H> {
     voxels: Arc<S>,
     /// How many times the voxels were replaced by edited ones.
-    generation: u64,
+    pub(crate) generation: u64,
     tree: LodTree,
     meshing: Meshing<S, H>,
     /// The meshes held and their budget.
@@ -1139,7 +1139,7 @@ pub struct Streamer<S, H> {
     /// Whether the last LOD update went through.
     lod_ok: bool,
     /// Finished meshes collected from the workers, not uploaded yet.
-    finished: std::collections::VecDeque<MeshResult<H>>,
+    pub(crate) finished: std::collections::VecDeque<MeshResult<H>>,
     /// First failures not taken by the game yet.
     failures: Vec<MeshFailure>,
     /// Meshes uploaded this frame and not kept, freed by a meshing worker
@@ -1715,6 +1715,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 chunk_draw.hidden_flattening = facing.hidden_flattening;
             }
         }
+        // A plan made ahead asks for what this update collected: asked
+        // again if it still is (a failure waits for its retry below, an
+        // edit's chunk is stale until a mesh of its voxels comes). Only the
+        // plan's jobs: a seam found wrong below is found so against the
+        // meshes held now, those just collected included (filtered too, a
+        // mesh collected for LODs no longer drawn around it was never
+        // meshed again, and the view counted as settled with its seam
+        // waiting: `settled()` with `unsettled` > 0).
+        if !self.collected.is_empty() {
+            let (collected, cache) = (&self.collected, &*cache);
+            jobs.retain(|job| {
+                !collected.contains(&job.key) || (!cache.holds(job.key) || cache.stale.contains_key(&job.key))
+            });
+        }
         let mut reseamed = HashSet::default();
         if seams.meshes_for_neighbours() {
             let tree = &self.tree;
@@ -1731,15 +1745,6 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             // An edited chunk among them is meshed for them by its edit's
             // job: one job per chunk.
             jobs.extend(reseams.into_iter().filter(|job| !cache.stale.contains_key(&job.key)));
-        }
-        // A plan made ahead asks for what this update collected: asked
-        // again if it still is (a failure waits for its retry below, an
-        // edit's chunk is stale until a mesh of its voxels comes).
-        if !self.collected.is_empty() {
-            let (collected, cache) = (&self.collected, &self.cache);
-            jobs.retain(|job| {
-                !collected.contains(&job.key) || (!cache.holds(job.key) || cache.stale.contains_key(&job.key))
-            });
         }
         // A chunk that failed waits for its retry (failures collected this
         // update too); one no longer asked for is forgotten.

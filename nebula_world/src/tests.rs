@@ -1287,6 +1287,57 @@ mod streaming {
     }
 
     #[test]
+    fn a_mesh_collected_for_lods_no_longer_drawn_around_it_is_meshed_again_before_the_view_settles() {
+        // A constrained chunk's mesh that comes back from a worker made for
+        // other LODs around it than those drawn now (the tree moved while
+        // it was meshed) must be meshed again: the view is not settled
+        // while that seam waits with fallback skirts. The first version
+        // dropped the job (the plan's filter of chunks collected this
+        // update caught it too) and called such a view settled with a seam
+        // waiting, which a CI run saw once.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = planet.surface_point(up);
+        let side = up.any_orthonormal_vector();
+        let eye = ground + up * 40.0 - side * 60.0;
+        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+        let mut streamer = Streamer::new(planet, lod, camera, 2, &mut { upload }).unwrap();
+        streamer.keep_cpu_meshes(true);
+        streamer.set_seam_strategy(crate::seams::SeamStrategy::Constrained);
+        settle_seams(&mut streamer, camera, 20_000);
+        let (key, right, mesh) = streamer
+            .drawn()
+            .find(|(_, chunk, _)| chunk.made_for != crate::seams::SAME_ALL_ROUND)
+            .map(|(key, chunk, _)| (key, chunk.made_for, chunk.cpu.as_deref().cloned().expect("kept")))
+            .expect("a constrained seam in view");
+        let mut wrong = right;
+        wrong[0] = match right[0] {
+            nebula_lod::NeighborLodRelation::Same => nebula_lod::NeighborLodRelation::LowerThanNeighbor,
+            _ => nebula_lod::NeighborLodRelation::Same,
+        };
+        streamer.finished.push_back(crate::stream::MeshResult {
+            key,
+            seams: crate::seams::SeamStrategy::Constrained,
+            relations: wrong,
+            generation: streamer.generation,
+            result: Ok(crate::stream::Made::Mesh(Box::new(mesh))),
+            millis: 0.0,
+        });
+        streamer.update(camera, &mut { upload });
+        let made_for = |streamer: &Streamer<ProceduralPlanet, Sized>| {
+            streamer.drawn().find(|(k, _, _)| *k == key).map(|(_, chunk, _)| chunk.made_for)
+        };
+        assert_eq!(made_for(&streamer), Some(wrong), "the mesh made for other LODs was not taken: it tests nothing");
+        let waiting = streamer.figures().unsettled;
+        assert!(waiting > 0, "no seam counted as waiting for {key:?}");
+        assert!(!streamer.settled(), "settled with {waiting} columns waiting for their seams");
+        settle_seams(&mut streamer, camera, 20_000);
+        assert_eq!(made_for(&streamer), Some(right), "{key:?} not meshed again for the LODs drawn around it");
+    }
+
+    #[test]
     fn stitched_views_hold_what_their_voxels_and_neighbours_make_after_an_edit_across_a_seam() {
         // A stitched chunk holds the voxels of its coarser neighbour along
         // the seam up to a coarse voxel deep, past its own padding. An edit
