@@ -30,8 +30,11 @@
 //!   quad does);
 //! - an edge in a boundary plane is split at every lattice point whose
 //!   2×2×2 voxels are not *plain* (plain: they vary along one axis at most,
-//!   so the surface there is one flat face or none) and at every point
-//!   within one voxel of the chunk's edges.
+//!   so the surface there is one flat face or none), at every point on a
+//!   chunk edge, and at every point within one voxel of a chunk edge where
+//!   a face not lying in the boundary plane meets it (there the strips
+//!   along the plane end; a face lying in the plane, or none, needs no
+//!   vertex there).
 //!
 //! Every strip end is such a point, so both chunks put the same vertices on
 //! every line they share. The first version split boundary edges at every
@@ -1114,16 +1117,21 @@ fn split_by_sky(
 }
 
 /// Whether lattice point `local`, on a boundary plane, is in the canonical
-/// boundary vertex set: within one voxel of a chunk edge, or where its
-/// 2×2×2 voxels are not plain (see the module docs). Reads only voxels both
-/// chunks sharing the plane hold (their padding).
+/// boundary vertex set: on a chunk edge, where its 2×2×2 voxels are not
+/// plain, or within one voxel of a chunk edge where a face not lying in
+/// the boundary plane meets the point (see the module docs). Reads only
+/// voxels every chunk sharing the point holds (their padding).
 fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3]) -> bool {
     let on_plane = |c: i32| c == 0 || c == LAST;
     let near_plane = |c: i32| c <= 1 || c >= LAST - 1;
-    let near_edge = (0..3).any(|i| on_plane(local[i]) && (0..3).any(|j| j != i && near_plane(local[j])));
-    if near_edge {
+    let mut planes = (0..3).filter(|&k| on_plane(local[k]));
+    let Some(plane) = planes.next() else { return false };
+    if planes.next().is_some() {
+        // On a chunk edge: shared by four chunks, where the strips of
+        // faces lying in a boundary plane end.
         return true;
     }
+    let near_edge = (0..3).any(|j| j != plane && near_plane(local[j]));
     // The voxels below and above the point on each axis: local p − 1 and
     // p, padded p and p + 1.
     let at = |d: [i32; 3]| voxels.get([0, 1, 2].map(|k| (local[k] + d[k]) as u32)).unwrap_or(Voxel::AIR);
@@ -1133,8 +1141,19 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3]) -> bool {
     }
     // Along axis k the two halves of the cube are equal.
     let invariant = |k: usize| (0..8).filter(|i| i & (1 << k) == 0).all(|i| cube[i] == cube[i | (1 << k)]);
-    let plain_axes = (0..3).filter(|&k| invariant(k)).count();
-    plain_axes < 2
+    let varying = (0..3).filter(|&k| !invariant(k)).fold(0u8, |mask, k| mask | 1 << k);
+    if varying.count_ones() >= 2 {
+        return true;
+    }
+    // Plain: one flat face through the point, or none. Within a voxel of
+    // an edge the strips of faces touching the plane end (where the next
+    // plane begins), so a face across the plane makes the point a vertex.
+    // A face lying in the plane (or none) does not: nothing but this
+    // plane's own faces, whose strips end on the edge or where the face
+    // changes, meets the point, and dropping these points halves the
+    // triangles of flat ground lying in a boundary plane (the sea level,
+    // where every coarse LOD puts lowland: 366 -> 126 triangles a chunk).
+    near_edge && varying != 0 && varying != 1 << plane
 }
 
 /// A block-mesh face's axes: normal `n` (with its sign) and the quad's
