@@ -119,6 +119,9 @@ pub struct ChunkMesher {
     /// Per horizontal side (index as in [`FaceDirection::HORIZONTAL`]):
     /// every lattice point on its plane is a vertex.
     dense_sides: [bool; 4],
+    /// The radial planes' edges that may go without vertices where only
+    /// flat ground lying in the plane meets them.
+    flat_edges: FlatEdges,
     /// Per horizontal side: `Some(d)` where the neighbour is `d` LODs
     /// coarser and this chunk stitches the seam (`crate::stitch`).
     stitch_coarser: [Option<u8>; 4],
@@ -186,6 +189,7 @@ impl ChunkMesher {
             index_b: Vec::new(),
             boundary_vertices: BoundaryVertices::Canonical,
             dense_sides: [false; 4],
+            flat_edges: FlatEdges::default(),
             stitch_coarser: [None; 4],
             stitch_parts: StitchParts::ALL,
             sky_floors: [0; PADDED_COLUMNS],
@@ -326,7 +330,20 @@ impl ChunkMesher {
         self.dense_sides = FaceDirection::HORIZONTAL.map(|side| dense_sides.contains(&side));
         self.stitch_coarser =
             FaceDirection::HORIZONTAL.map(|side| stitched.iter().find(|s| s.side == side).and_then(|s| s.coarser_by));
+        // Faces lying in a radial plane are stripped along z (their `u`).
+        debug_assert!(
+            RIGHT_HANDED_Y_UP_CONFIG.faces.iter().map(FaceAxes::of).filter(|axes| axes.n == 1).all(|axes| axes.u == 2)
+        );
         let key = voxels.key();
+        let last_column = layout.chunks_per_edge(key.lod).saturating_sub(1);
+        let sides_x = [FaceDirection::NegX, FaceDirection::PosX];
+        self.flat_edges = FlatEdges {
+            open: [0, 1].map(|end| {
+                let side = FaceDirection::HORIZONTAL.iter().position(|&s| s == sides_x[end]).unwrap_or(0);
+                let on_cube_edge = if end == 0 { key.x == 0 } else { key.x == last_column };
+                !on_cube_edge && !self.dense_sides[side] && self.stitch_coarser[side].is_none()
+            }),
+        };
         let origin = layout.chunk_origin(key)?;
         let mut mesh = ChunkMesh::empty(key, *layout, origin);
         self.mesh_into(voxels, layout, &mut mesh)?;
@@ -370,6 +387,7 @@ impl ChunkMesher {
         self.all_lit = self.plugs_for.is_none()
             && voxels.dark_air_columns_from(&self.greedy.rows).iter().all(|&columns| columns == 0);
         let canonical = self.boundary_vertices == BoundaryVertices::Canonical;
+        let flat_edges = self.flat_edges;
         for (group, face) in groups.iter_mut().zip(faces) {
             let axes = FaceAxes::of(face);
             let covered = &mut self.covered;
@@ -382,7 +400,7 @@ impl ChunkMesher {
                     return true;
                 }
                 boundary_layers |= 1 << (quad.minimum[axes.n] - 1);
-                if canonical && axes.keeps_canonical_corners(quad, voxels) {
+                if canonical && axes.keeps_canonical_corners(quad, voxels, flat_edges) {
                     axes.for_each_face(quad, |padded| {
                         let index = PaddedChunkShape::linearize(padded) as usize;
                         covered[index / 64] |= 1 << (index % 64);
@@ -725,14 +743,14 @@ impl ChunkMesher {
             // Every corner on a boundary plane is canonical (strips end
             // only there), so the canonical set includes them.
             debug_assert!(
-                !canonical || !corner || is_boundary_vertex(voxels, point_at(t)),
+                !canonical || !corner || is_boundary_vertex(voxels, point_at(t), self.flat_edges),
                 "corner {:?} off the canonical set",
                 point_at(t)
             );
             let vertex = if dense {
                 true
             } else if canonical {
-                is_boundary_vertex(voxels, point_at(t))
+                is_boundary_vertex(voxels, point_at(t), self.flat_edges)
             } else {
                 corner
             };
@@ -1121,15 +1139,26 @@ fn split_by_sky(
 /// plain, or within one voxel of a chunk edge where a face not lying in
 /// the boundary plane meets the point (see the module docs). Reads only
 /// voxels every chunk sharing the point holds (their padding).
-fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3]) -> bool {
+fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3], flat_edges: FlatEdges) -> bool {
     let on_plane = |c: i32| c == 0 || c == LAST;
     let near_plane = |c: i32| c <= 1 || c >= LAST - 1;
     let mut planes = (0..3).filter(|&k| on_plane(local[k]));
-    let Some(plane) = planes.next() else { return false };
-    if planes.next().is_some() {
-        // On a chunk edge: shared by four chunks, where the strips of
-        // faces lying in a boundary plane end.
-        return true;
+    let Some(mut plane) = planes.next() else { return false };
+    let edge = planes.next();
+    if let Some(mut second) = edge {
+        if second == 1 {
+            // The radial plane first.
+            (plane, second) = (second, plane);
+        }
+        // On a chunk edge, shared by four chunks. Where two radial
+        // planes' faces' strips end (across their strip axis) a vertex,
+        // and at a chunk corner; along a radial plane's edge that its
+        // strips run along (`FlatEdges`), only where something other than
+        // that plane's own faces meets the point (below).
+        let along = plane == 1 && flat_edges.along(second, local[second]);
+        if !along || planes.next().is_some() {
+            return true;
+        }
     }
     let near_edge = (0..3).any(|j| j != plane && near_plane(local[j]));
     // The voxels below and above the point on each axis: local p − 1 and
@@ -1153,7 +1182,39 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3]) -> bool {
     // changes, meets the point, and dropping these points halves the
     // triangles of flat ground lying in a boundary plane (the sea level,
     // where every coarse LOD puts lowland: 366 -> 126 triangles a chunk).
+    if edge.is_some() {
+        // On a radial plane's edge along its strips: faces lying in the
+        // radial plane meet it only along their strips' sides, so only
+        // another face (in the side plane) makes it a vertex; flat ground
+        // lying in a layer boundary keeps one edge there instead of a
+        // vertex per voxel (126 -> 64 triangles a chunk).
+        return varying != 0 && varying != 1 << plane;
+    }
     near_edge && varying != 0 && varying != 1 << plane
+}
+
+/// Which edges of the radial boundary planes (those along the sides
+/// across local x) may go without a vertex where only the radial plane's
+/// own faces meet them: edges along the strips of faces lying in a radial
+/// plane (which run along z), on a side that is neither on a cube-face
+/// edge (the chunk across has other axes, its strips may end there), nor
+/// dense, nor stitched (its vertices there are set by the neighbour's
+/// LOD). A function of the chunk's key and its column's LOD relations,
+/// which the chunks sharing such an edge (the same column's layers, and
+/// the column across at the same LOD) agree on.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct FlatEdges {
+    /// The sides x = 0 and x = `LAST`.
+    open: [bool; 2],
+}
+
+impl FlatEdges {
+    /// Whether the edge on the side plane `axis` = `coordinate` (a
+    /// horizontal axis; the edge's other plane radial) may go without a
+    /// vertex where only the radial plane's faces meet it.
+    fn along(self, axis: usize, coordinate: i32) -> bool {
+        axis == 0 && self.open[usize::from(coordinate == LAST)]
+    }
 }
 
 /// A block-mesh face's axes: normal `n` (with its sign) and the quad's
@@ -1203,14 +1264,13 @@ impl FaceAxes {
     /// Whether `quad` may stay whole although it touches a boundary plane:
     /// it does not lie in one, and each of its corners on one is in the
     /// canonical set.
-    fn keeps_canonical_corners(&self, quad: &UnorientedQuad, voxels: &ChunkVoxels) -> bool {
+    fn keeps_canonical_corners(&self, quad: &UnorientedQuad, voxels: &ChunkVoxels, flat_edges: FlatEdges) -> bool {
         let plane = self.plane_of(quad.minimum[self.n] as i32 - 1);
         plane != 0
             && plane != LAST
-            && self
-                .corners(quad)
-                .into_iter()
-                .all(|corner| !corner.iter().any(|&c| c == 0 || c == LAST) || is_boundary_vertex(voxels, corner))
+            && self.corners(quad).into_iter().all(|corner| {
+                !corner.iter().any(|&c| c == 0 || c == LAST) || is_boundary_vertex(voxels, corner, flat_edges)
+            })
     }
 
     /// Calls `f` with the padded voxel of every face of `quad`.

@@ -406,11 +406,16 @@ fn pair_seam_defects(
             }
         }
     }
-    // Edges in the shared plane, off the pair's outer boundary planes.
-    let in_seam = |p: [i32; 3]| p[axis] == SIDE && (0..3).all(|k| k == axis || (p[k] > 0 && p[k] < SIDE));
-    let seam_edges: Vec<_> = edges.into_iter().filter(|&(a, b)| in_seam(a) && in_seam(b)).collect();
+    // Edges in the shared plane: none with a vertex of either chunk
+    // strictly inside, on the plane's edges too (shared with chunks not
+    // meshed here, but the two must agree there as well); off the pair's
+    // outer boundary planes, every one matched by its reverse.
+    let in_plane = |p: [i32; 3]| p[axis] == SIDE;
+    let in_seam = |p: [i32; 3]| in_plane(p) && (0..3).all(|k| k == axis || (p[k] > 0 && p[k] < SIDE));
+    let plane_edges: Vec<_> = edges.into_iter().filter(|&(a, b)| in_plane(a) && in_plane(b)).collect();
     let inside =
-        seam_edges.iter().filter(|&&(a, b)| mesh::lattice_points_inside(a, b).any(|p| points.contains(&p))).count();
+        plane_edges.iter().filter(|&&(a, b)| mesh::lattice_points_inside(a, b).any(|p| points.contains(&p))).count();
+    let seam_edges: Vec<_> = plane_edges.into_iter().filter(|&(a, b)| in_seam(a) && in_seam(b)).collect();
     let mut balance: HashMap<([i32; 3], [i32; 3]), i32> = HashMap::new();
     for (a, b) in seam_edges {
         let (key, sign) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
