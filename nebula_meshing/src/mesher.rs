@@ -34,7 +34,9 @@
 //!   chunk edge, and at every point within one voxel of a chunk edge where
 //!   a face not lying in the boundary plane meets it (there the strips
 //!   along the plane end; a face lying in the plane, or none, needs no
-//!   vertex there).
+//!   vertex there); on a radial plane's edge along its faces' strips
+//!   (`FlatEdges`), only where something other than that plane's faces
+//!   meets it.
 //!
 //! Every strip end is such a point, so both chunks put the same vertices on
 //! every line they share. The first version split boundary edges at every
@@ -1150,11 +1152,11 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3], flat_edges: FlatEdg
             // The radial plane first.
             (plane, second) = (second, plane);
         }
-        // On a chunk edge, shared by four chunks. Where two radial
-        // planes' faces' strips end (across their strip axis) a vertex,
-        // and at a chunk corner; along a radial plane's edge that its
-        // strips run along (`FlatEdges`), only where something other than
-        // that plane's own faces meets the point (below).
+        // On a chunk edge, shared by four chunks: a vertex at every chunk
+        // corner and on every edge the strips of faces lying in a plane
+        // may end on; on a radial plane's edge that those strips run
+        // along (`FlatEdges`), only where something other than the radial
+        // plane's own faces meets the point (below).
         let along = plane == 1 && flat_edges.along(second, local[second]);
         if !along || planes.next().is_some() {
             return true;
