@@ -337,15 +337,12 @@ impl ChunkMesher {
             RIGHT_HANDED_Y_UP_CONFIG.faces.iter().map(FaceAxes::of).filter(|axes| axes.n == 1).all(|axes| axes.u == 2)
         );
         let key = voxels.key();
-        let last_column = layout.chunks_per_edge(key.lod).saturating_sub(1);
-        let sides_x = [FaceDirection::NegX, FaceDirection::PosX];
-        self.flat_edges = FlatEdges {
-            open: [0, 1].map(|end| {
-                let side = FaceDirection::HORIZONTAL.iter().position(|&s| s == sides_x[end]).unwrap_or(0);
-                let on_cube_edge = if end == 0 { key.x == 0 } else { key.x == last_column };
-                !on_cube_edge && !self.dense_sides[side] && self.stitch_coarser[side].is_none()
-            }),
+        let open = |side: FaceDirection| {
+            let index = crate::render::side_index(side);
+            let on_cube_edge = side.face_edge().is_some_and(|edge| layout.neighbor(key, edge).face != key.face);
+            !on_cube_edge && !self.dense_sides[index] && self.stitch_coarser[index].is_none()
         };
+        self.flat_edges = FlatEdges { open: [open(FaceDirection::NegX), open(FaceDirection::PosX)] };
         let origin = layout.chunk_origin(key)?;
         let mut mesh = ChunkMesh::empty(key, *layout, origin);
         self.mesh_into(voxels, layout, &mut mesh)?;
@@ -1146,8 +1143,7 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3], flat_edges: FlatEdg
     let near_plane = |c: i32| c <= 1 || c >= LAST - 1;
     let mut planes = (0..3).filter(|&k| on_plane(local[k]));
     let Some(mut plane) = planes.next() else { return false };
-    let edge = planes.next();
-    if let Some(mut second) = edge {
+    if let Some(mut second) = planes.next() {
         if second == 1 {
             // The radial plane first.
             (plane, second) = (second, plane);
@@ -1162,6 +1158,7 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3], flat_edges: FlatEdg
             return true;
         }
     }
+    // (Every point on an edge is near one.)
     let near_edge = (0..3).any(|j| j != plane && near_plane(local[j]));
     // The voxels below and above the point on each axis: local p − 1 and
     // p, padded p and p + 1.
@@ -1181,17 +1178,12 @@ fn is_boundary_vertex(voxels: &ChunkVoxels, local: [i32; 3], flat_edges: FlatEdg
     // plane begins), so a face across the plane makes the point a vertex.
     // A face lying in the plane (or none) does not: nothing but this
     // plane's own faces, whose strips end on the edge or where the face
-    // changes, meets the point, and dropping these points halves the
+    // changes, meets the point, and dropping these points cuts the
     // triangles of flat ground lying in a boundary plane (the sea level,
     // where every coarse LOD puts lowland: 366 -> 126 triangles a chunk).
-    if edge.is_some() {
-        // On a radial plane's edge along its strips: faces lying in the
-        // radial plane meet it only along their strips' sides, so only
-        // another face (in the side plane) makes it a vertex; flat ground
-        // lying in a layer boundary keeps one edge there instead of a
-        // vertex per voxel (126 -> 64 triangles a chunk).
-        return varying != 0 && varying != 1 << plane;
-    }
+    // The same holds on a radial plane's edge along its strips (`edge`,
+    // near an edge too): its faces meet it only along their strips'
+    // sides (126 -> 64).
     near_edge && varying != 0 && varying != 1 << plane
 }
 

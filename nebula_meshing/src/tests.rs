@@ -354,6 +354,22 @@ fn seam_defects(
     pair_seam_defects(&voxel_at, axis, rule, plug_margin)
 }
 
+/// Chunk `key`'s padded voxels from `voxel_at` (padded coordinates of a
+/// pair of chunks), the chunk `offset` voxels along `axis` in the pair.
+fn pair_chunk(key: ChunkKey, voxel_at: &dyn Fn([usize; 3]) -> Voxel, axis: usize, offset: usize) -> ChunkVoxels {
+    let mut voxels = ChunkVoxels::new(key);
+    for z in 0..34u32 {
+        for y in 0..34u32 {
+            for x in 0..34u32 {
+                let mut at = [x, y, z].map(|c| c as usize);
+                at[axis] += offset;
+                voxels.set([x, y, z], voxel_at(at));
+            }
+        }
+    }
+    voxels
+}
+
 /// How far the second chunk of [`pair_seam_defects`] lies along its axis.
 const PAIR_OFFSET: i32 = 32;
 
@@ -378,16 +394,7 @@ fn pair_seam_defects(
     let mut edges: Vec<([i32; 3], [i32; 3])> = Vec::new();
     let mut points: HashSet<[i32; 3]> = HashSet::new();
     for (key, offset) in [(key_a, 0), (key_b, SIDE)] {
-        let mut voxels = ChunkVoxels::new(key);
-        for z in 0..34u32 {
-            for y in 0..34u32 {
-                for x in 0..34u32 {
-                    let mut at = [x, y, z].map(|c| c as usize);
-                    at[axis] += offset as usize;
-                    voxels.set([x, y, z], voxel_at(at));
-                }
-            }
-        }
+        let mut voxels = pair_chunk(key, voxel_at, axis, offset as usize);
         if let Some(margin) = plug_margin {
             mesher.plug_margin = margin;
             mesher.plug_dark_air(&mut voxels);
@@ -462,7 +469,7 @@ impl Terraces {
     const GRID: usize = 16;
 
     fn voxel(&self, at: [usize; 3]) -> Voxel {
-        let across: Vec<usize> = (0..3).filter(|&k| k != self.up).map(|k| at[k]).collect();
+        let across = [(self.up + 1) % 3, (self.up + 2) % 3].map(|k| at[k]);
         let cell = |c: usize, k: usize| ((c + self.shift[k]) / self.cell) % Self::GRID;
         let (a, b) = (cell(across[0], 0), cell(across[1], 1));
         let height = self.plane + i32::from(self.levels[a * Self::GRID + b]);
@@ -502,14 +509,7 @@ proptest! {
     fn terraced_neighbours_close_up((terraces, axis) in terraces()) {
         let voxel_at = |at: [usize; 3]| terraces.voxel(at);
         prop_assert_eq!(pair_seam_defects(&voxel_at, axis, mesher::BoundaryVertices::Canonical, None), 0);
-        let mut voxels = ChunkVoxels::new(ChunkKey { face: CubeFace::NegY, lod: 0, x: 7, y: 2, layer: 0 });
-        for z in 0..34u32 {
-            for y in 0..34u32 {
-                for x in 0..34u32 {
-                    voxels.set([x, y, z], terraces.voxel([x, y, z].map(|c| c as usize)));
-                }
-            }
-        }
+        let voxels = pair_chunk(ChunkKey { face: CubeFace::NegY, lod: 0, x: 7, y: 2, layer: 0 }, &voxel_at, 0, 0);
         let mesh = ChunkMesher::new().mesh(&voxels, planet().layout()).unwrap();
         prop_assert!(!mesh.has_t_junctions());
         prop_assert!(interior_edge_balance(&mesh).is_empty(), "open edges inside the chunk");

@@ -1286,6 +1286,17 @@ mod streaming {
             .count()
     }
 
+    /// A camera 40 m over `planet`'s ground at a fixed place, 60 m to the
+    /// side, looking at it (its seams across several LODs in view), and
+    /// the LOD settings of a 400-pixel 60° screen.
+    fn looking_at_the_ground_40_m_up(planet: &ProceduralPlanet) -> (Camera, LodSettings) {
+        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+        let ground = planet.surface_point(up);
+        let eye = ground + up * 40.0 - up.any_orthonormal_vector() * 60.0;
+        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        (camera, LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() })
+    }
+
     #[test]
     fn a_mesh_collected_for_lods_no_longer_drawn_around_it_is_meshed_again_before_the_view_settles() {
         // A constrained chunk's mesh that comes back from a worker made for
@@ -1296,13 +1307,8 @@ mod streaming {
         // update caught it too) and called such a view settled with a seam
         // waiting, which a CI run saw once.
         let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::small(7)).unwrap());
-        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
-        let ground = planet.surface_point(up);
-        let side = up.any_orthonormal_vector();
-        let eye = ground + up * 40.0 - side * 60.0;
-        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let (camera, lod) = looking_at_the_ground_40_m_up(&planet);
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
-        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
         let mut streamer = Streamer::new(planet, lod, camera, 2, &mut { upload }).unwrap();
         streamer.keep_cpu_meshes(true);
         streamer.set_seam_strategy(crate::seams::SeamStrategy::Constrained);
@@ -1347,13 +1353,9 @@ mod streaming {
         // voxels and the LODs around it make.
         let settings = PlanetSettings::small(7);
         let mut world = crate::World::open(settings, None).unwrap();
-        let up = DVec3::new(0.3, 0.8, 0.5).normalize();
-        let ground = world.source().base().surface_point(up);
-        let side = up.any_orthonormal_vector();
-        let eye = ground + up * 40.0 - side * 60.0;
-        let camera = Camera { position: eye, forward: ground - eye, up, aspect: 1.6 };
+        let (camera, lod) = looking_at_the_ground_40_m_up(world.source().base());
+        let eye = camera.position;
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
-        let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
         let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
         streamer.keep_cpu_meshes(true);
         streamer.set_seam_strategy(crate::seams::SeamStrategy::Stitched);
