@@ -228,12 +228,25 @@ impl Frustum {
     /// hull of those rays, and this one is convex).
     #[must_use]
     pub fn covers(&self, camera: &Camera, fov_y_degrees: f64) -> bool {
+        self.covers_opened(camera, fov_y_degrees, 0.0)
+    }
+
+    /// [`Frustum::covers`] for the frustum of `camera` with each side
+    /// opened by `angle` radians (what a cull with that margin reaches).
+    #[must_use]
+    pub fn covers_opened(&self, camera: &Camera, fov_y_degrees: f64, angle: f64) -> bool {
         if camera.check().is_err() {
             return false;
         }
         let (forward, right, up) = nebula_math::view_basis(camera.forward, camera.up);
         let tan_y = (fov_y_degrees.to_radians() / 2.0).tan();
         let tan_x = tan_y * camera.aspect;
+        let (tan_x, tan_y) = if angle > 0.0 {
+            let open = |tan: f64| (tan.atan() + angle).min(FRAC_PI_2 - 1e-6).tan();
+            (open(tan_x), open(tan_y))
+        } else {
+            (tan_x, tan_y)
+        };
         let edges = [
             forward + right * tan_x + up * tan_y,
             forward + right * tan_x - up * tan_y,

@@ -23,7 +23,13 @@
 //! - **View-independent tree, view-dependent drawing**: refinement depends
 //!   on distance only, so turning the camera never re-meshes; horizon and
 //!   frustum culling pick the leaves to draw ([`LodTree::cull`], a walk
-//!   from the roots that skips hidden subtrees).
+//!   from the roots that skips hidden subtrees). Except through a lens
+//!   narrower than [`LodSettings::surround_fov_y_degrees`] (60°): such a
+//!   view refines its own frustum, opened by a margin
+//!   ([`LodTree::focus`]), with its own K and the rest as a 60° view would,
+//!   so that a 12° lens holds a third of the nodes or fewer and is drawn
+//!   at the τ asked, not one the node budget raised;
+//!   turning it past the margin refines the new view.
 //!   A culled leaf stays in the tree, so a visible neighbour's seam is never
 //!   computed against a missing chunk. That culling is conservative (the
 //!   planet-wide lowest bound, hundreds of kilometres deep on an Earth);

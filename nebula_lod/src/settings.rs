@@ -42,7 +42,37 @@ pub struct LodSettings {
     /// such a tree holds about 170,000 nodes); a 640×400 Earth view at
     /// τ = 0.01 px is drawn at 0.27 px.
     pub max_nodes: usize,
+    /// The field of view, degrees, the tree refines for outside the view
+    /// when the view's own is narrower (default 60°): a zoom lens refines
+    /// its frustum (opened by a margin, [`LodTree`](crate::LodTree)'s
+    /// focus) with its own K and the planet around as a view of this field
+    /// would, so that a 12° lens pays for what it sees instead of for
+    /// every direction at its magnification. Turning such a lens refines
+    /// the new view then (what comes into view is drawn first as this
+    /// field of view would draw it); a view at least this wide refines by
+    /// distance alone, as if this were not set.
+    pub surround_fov_y_degrees: f64,
 }
+
+/// Radians each side of a narrow view's frustum is opened by for its focus:
+/// the frustum the tree refines with the view's own K.
+pub(crate) const FOCUS_MARGIN_ANGLE: f64 = 6.0 * std::f64::consts::PI / 180.0;
+
+/// Radians of margin the focus keeps around the camera's own frustum before
+/// it is made again (the LOD tree refocuses once the view opened by this
+/// no longer fits in it): the 3° by which a streamer culls ahead of the
+/// camera (`nebula_world`'s prediction margin), so that every leaf it draws
+/// was refined with the view's K.
+pub(crate) const FOCUS_KEPT_ANGLE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+
+/// How far, in LOD-0 voxel edges, the eye may move from where the focus
+/// was made before it is made again (its apex is set back so that every
+/// eye that near is inside).
+pub(crate) const FOCUS_MARGIN_VOXELS: f64 = 32.0;
+
+/// The widest aspect (width over height) the node bound of a focused tree
+/// allows for ([`LodSettings::node_bound_focused`]): 21:9 screens fit.
+pub(crate) const FOCUS_BOUND_ASPECT: f64 = 2.5;
 
 impl Default for LodSettings {
     fn default() -> Self {
@@ -54,6 +84,7 @@ impl Default for LodSettings {
             finest_lod: 0,
             balance: BalanceMode::Unrestricted,
             max_nodes: 400_000,
+            surround_fov_y_degrees: 60.0,
         }
     }
 }
@@ -71,17 +102,46 @@ impl LodSettings {
         Ok(ScreenSpace::new(self.screen_height_px, self.fov_y_degrees, self.threshold_px)?)
     }
 
+    /// The screen-space constants outside a narrow view's focus: K of the
+    /// settings' screen at [`LodSettings::surround_fov_y_degrees`], or of
+    /// the view's own field where that is wider (then there is no focus:
+    /// the same constants as [`LodSettings::screen_space`]), and τ.
+    ///
+    /// # Errors
+    /// As [`LodSettings::screen_space`], and for a surround field of view
+    /// outside (0°, 180°).
+    pub fn surround_screen_space(&self) -> Result<ScreenSpace, LodError> {
+        let view = self.screen_space()?;
+        let surround = ScreenSpace::new(self.screen_height_px, self.surround_fov_y_degrees, self.threshold_px)?;
+        Ok(if surround.k() < view.k() { surround } else { view })
+    }
+
+    /// Whether the view is narrower than the surround's field of view: the
+    /// tree then refines its focus with the view's K and the rest with the
+    /// surround's.
+    ///
+    /// # Errors
+    /// As [`LodSettings::surround_screen_space`].
+    pub fn is_focused(&self) -> Result<bool, LodError> {
+        Ok(self.surround_screen_space()?.k() < self.screen_space()?.k())
+    }
+
     /// The τ a tree of a planet whose coarsest LOD is `max_lod` refines to:
     /// [`LodSettings::threshold_px`], or the least larger τ whose bound on
-    /// the node count ([`LodSettings::node_bound`]) is within
+    /// the node count ([`LodSettings::node_bound`], or
+    /// [`LodSettings::node_bound_focused`] for a narrow view) is within
     /// [`LodSettings::max_nodes`].
     ///
     /// # Errors
-    /// As [`LodSettings::screen_space`]; [`LodError::NodeBudget`] for a
-    /// budget too small for the face roots and their children.
+    /// As [`LodSettings::surround_screen_space`];
+    /// [`LodError::NodeBudget`] for a budget too small for the face roots
+    /// and their children.
     pub fn effective_threshold_px(&self, max_lod: u8) -> Result<f64, LodError> {
-        let screen = self.screen_space()?;
-        let fits = |tau: f64| Self::node_bound(screen.k() / tau, max_lod) <= self.max_nodes as f64;
+        // Checked once here; `tree_node_bound` cannot fail after it.
+        self.surround_screen_space()?;
+        let bound =
+            |tau: f64| LodSettings { threshold_px: tau, ..*self }.tree_node_bound(max_lod).unwrap_or(f64::INFINITY);
+        let fits = |tau: f64| bound(tau) <= self.max_nodes as f64;
         if fits(self.threshold_px) {
             return Ok(self.threshold_px);
         }
@@ -104,6 +164,32 @@ impl LodSettings {
         Ok(high)
     }
 
+    /// The bound on the nodes of a tree with these settings (as given, τ
+    /// not raised): [`LodSettings::node_bound`], or for a narrow view
+    /// [`LodSettings::node_bound_focused`].
+    ///
+    /// # Errors
+    /// As [`LodSettings::surround_screen_space`].
+    pub fn tree_node_bound(&self, max_lod: u8) -> Result<f64, LodError> {
+        let (screen, surround) = (self.screen_space()?, self.surround_screen_space()?);
+        let tau = self.threshold_px;
+        Ok(if self.is_focused()? {
+            Self::node_bound_focused(screen.k() / tau, surround.k() / tau, self.focus_half_angle(), max_lod)
+        } else {
+            Self::node_bound(screen.k() / tau, max_lod)
+        })
+    }
+
+    /// The half-angle, radians, of the narrowest circular cone around the
+    /// view direction that holds a focus (the view's frustum opened by its
+    /// margin) at any aspect up to 2.5.
+    fn focus_half_angle(&self) -> f64 {
+        let half_y = self.fov_y_degrees.to_radians() / 2.0;
+        let half_x = (half_y.tan() * FOCUS_BOUND_ASPECT).atan();
+        let open = |half: f64| (half + FOCUS_MARGIN_ANGLE).min(std::f64::consts::FRAC_PI_2 - 1e-6).tan();
+        open(half_x).hypot(open(half_y)).atan()
+    }
+
     /// An upper bound on the nodes of a tree whose split distance at each
     /// LOD is `k_over_tau` voxel edges of that LOD (D_split = e·K/τ):
     /// a LOD-L node exists only under a LOD-(L+1) parent closer than its
@@ -118,6 +204,37 @@ impl LodSettings {
     pub fn node_bound(k_over_tau: f64, max_lod: u8) -> f64 {
         let per_lod = 4.0 * 1.5 * std::f64::consts::PI * (k_over_tau / 32.0 + 1.5).powi(2);
         6.0 + (0..max_lod).map(|lod| per_lod.min(6.0 * 4f64.powi(i32::from(max_lod - lod)))).sum::<f64>()
+    }
+
+    /// An upper bound on the nodes of a focused tree
+    /// ([`LodSettings::surround_fov_y_degrees`]): split distances of
+    /// `surround_k_over_tau` voxel edges everywhere, as
+    /// [`LodSettings::node_bound`] counts them, and of `k_over_tau` for
+    /// parents inside a cone of half-angle `focus_half_angle` radians from
+    /// the eye (set back by its margin, so the disc grows by that much).
+    ///
+    /// Why the cone holds so few: the ground at distance ρ from the point
+    /// under an eye at height h is a circle whose directions from the eye
+    /// lie on a circle of radius cos e on the unit sphere (e its
+    /// depression); a cone of half-angle β takes at most an arc πβ long of
+    /// it, a share β / (2 cos e) = β √(ρ² + h²) / (2ρ). Over a disc of
+    /// radius r ≥ h that is at most πβ (r² / 2 + h r) of its π r²: β/2 of
+    /// every LOD's disc, plus β h / r, which summed over the LODs whose
+    /// disc reaches the ground (r ≥ h, doubling from one to the next) is
+    /// at most 2β in all.
+    #[must_use]
+    pub fn node_bound_focused(k_over_tau: f64, surround_k_over_tau: f64, focus_half_angle: f64, max_lod: u8) -> f64 {
+        let disc =
+            |k_over_tau: f64, extra: f64| 4.0 * 1.5 * std::f64::consts::PI * (k_over_tau / 32.0 + 1.5 + extra).powi(2);
+        // The apex set back by the eye's margin over the sine of the
+        // narrowest opened half-angle (at least the margin itself), in the
+        // finest parents' widths (64 LOD-0 voxels): coarser ones less.
+        let back = FOCUS_MARGIN_VOXELS / FOCUS_MARGIN_ANGLE.sin() / 64.0;
+        let beta = focus_half_angle.clamp(0.0, std::f64::consts::PI);
+        let (surround, focus) = (disc(surround_k_over_tau, 0.0), disc(k_over_tau, back));
+        let per_lod = surround + 0.5 * beta * focus;
+        6.0 + 2.0 * beta * focus
+            + (0..max_lod).map(|lod| per_lod.min(6.0 * 4f64.powi(i32::from(max_lod - lod)))).sum::<f64>()
     }
 }
 

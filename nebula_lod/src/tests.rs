@@ -447,6 +447,18 @@ fn the_terrain_horizon_hides_far_leaves_near_the_ground() {
     assert!(dug.lowest_surface_radius().unwrap() < lowest - 10_000.0);
 }
 
+/// The distance under which `tree` splits a node with `bounds` and voxel
+/// edge `edge`: with the view's K in a narrow view's focus, the surround's
+/// outside.
+fn split_distance(tree: &LodTree, bounds: &NodeBounds, edge: f64) -> f64 {
+    let screen = if tree.focus().is_some_and(|focus| focus.excludes(bounds)) {
+        tree.surround_space()
+    } else {
+        tree.screen_space()
+    };
+    screen.transition_distance(edge)
+}
+
 /// A camera `height` metres over Earth's ground in direction `dir`,
 /// looking 10° down towards `heading` (any horizontal direction).
 fn earth_camera(earth: &ProceduralPlanet, dir: DVec3, height: f64, heading: DVec3) -> Camera {
@@ -483,7 +495,7 @@ fn the_node_budget_holds_for_any_threshold_field_of_view_and_screen() {
         tree.update(&earth, &camera).unwrap();
         let tau = tree.screen_space().threshold_px();
         let nodes = tree.stats().nodes;
-        let bound = LodSettings::node_bound(tree.screen_space().k() / tau, max_lod);
+        let bound = LodSettings { threshold_px: tau, ..settings }.tree_node_bound(max_lod).unwrap();
         println!(
             "case {n}: τ {} -> {tau:.4} px, {nodes} nodes (bound {bound:.0}, budget {}), {:.2} s",
             settings.threshold_px,
@@ -498,8 +510,8 @@ fn the_node_budget_holds_for_any_threshold_field_of_view_and_screen() {
         } else {
             assert!(tau > settings.threshold_px);
             // Not raised more than the budget needs: 5 % less would not fit.
-            let k = tree.screen_space().k();
-            assert!(LodSettings::node_bound(k / (tau * 0.95), max_lod) > settings.max_nodes as f64);
+            let tighter = LodSettings { threshold_px: tau * 0.95, ..settings };
+            assert!(tighter.tree_node_bound(max_lod).unwrap() > settings.max_nodes as f64);
         }
     }
     // A 1080-line screen at 60° and τ = 1 is within the default budget.
@@ -541,13 +553,15 @@ fn a_changed_view_refines_as_a_tree_made_for_it() {
             assert!(tree.leaves() == fresh.leaves(), "{case}: other leaves than a tree made for it");
             assert!(tree.visible_leaves() == fresh.visible_leaves(), "{case}: other visible leaves");
         }
-        let split = |lod: u8| fresh.screen_space().transition_distance(earth.layout().voxel_edge(lod));
+        let split = |column: ChunkColumn| {
+            split_distance(&fresh, tree.node_bounds(column).unwrap(), earth.layout().voxel_edge(column.lod))
+        };
         for leaf in tree.leaves() {
             let distance = tree.node_bounds(leaf).unwrap().distance(camera.position);
-            assert!(leaf.lod == 0 || distance >= split(leaf.lod) * (1.0 - 1e-9), "{case}: {leaf:?} should split");
+            assert!(leaf.lod == 0 || distance >= split(leaf) * (1.0 - 1e-9), "{case}: {leaf:?} should split");
             if let Some(up) = parent(leaf).filter(|_| leaf.lod < earth.layout().max_lod()) {
                 let distance = tree.node_bounds(up).unwrap().distance(camera.position);
-                let merge = split(up.lod) / (1.0 - settings.hysteresis);
+                let merge = split(up) / (1.0 - settings.hysteresis);
                 assert!(distance <= merge * (1.0 + 1e-9), "{case}: {up:?} should merge");
             }
         }
@@ -912,5 +926,94 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+/// Every leaf of `tree` meets τ with the K of `asked`'s surround, and the
+/// count of visible leaves for `camera` (culled with the 3° margin a
+/// streamer culls ahead with) that miss τ with `asked`'s own K: the leaves
+/// of the view that `tree` fails to refine as asked (none, for a focused
+/// tree).
+fn leaves_coarser_than_asked(
+    tree: &mut LodTree,
+    asked: &LodSettings,
+    camera: &Camera,
+    edge: impl Fn(u8) -> f64,
+) -> usize {
+    tree.cull_with_margin(camera, CullMargin { angle: 3f64.to_radians(), distance: 0.0 }).unwrap();
+    let eye = camera.position;
+    let coarse = |column: ChunkColumn, screen: &nebula_math::ScreenSpace| {
+        let distance = tree.node_bounds(column).unwrap().distance(eye);
+        column.lod > 0 && distance < screen.transition_distance(edge(column.lod)) * (1.0 - 1e-9)
+    };
+    let surround = asked.surround_screen_space().unwrap();
+    for leaf in tree.leaves() {
+        assert!(!coarse(leaf, &surround), "{leaf:?} is coarser than the surround's K allows");
+    }
+    let view = asked.screen_space().unwrap();
+    tree.visible_leaves().iter().filter(|&&leaf| coarse(leaf, &view)).count()
+}
+
+#[test]
+fn a_narrow_lens_refines_its_view_as_asked_wherever_it_turns_and_the_rest_as_a_wide_view() {
+    // A 12° lens on a 400-line screen over Earth's ground at random
+    // places, heights and headings: refined by distance alone it would ask
+    // for some 2.5 times the default node budget, so τ = 1 was raised to
+    // 1.5. Focused, it refines at τ = 1 as asked: every leaf it draws
+    // (culled with the 3° margin a streamer culls ahead with) meets τ with
+    // the lens's K, after turns of any size and moves, and the leaves
+    // around the view meet it with the K of a 60° view.
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(1)).unwrap();
+    let max_lod = earth.layout().max_lod();
+    let edge = |lod: u8| earth.layout().voxel_edge(lod);
+    let lens = LodSettings { screen_height_px: 400.0, fov_y_degrees: 12.0, ..LodSettings::default() };
+    assert!(lens.is_focused().unwrap());
+    assert_eq!(lens.effective_threshold_px(max_lod).unwrap(), 1.0);
+    // The control: refined by distance alone (a surround as narrow as the
+    // lens), the budget raises τ and the leaves drawn are coarser than
+    // asked.
+    let by_distance = LodSettings { surround_fov_y_degrees: 12.0, ..lens };
+    assert!(!by_distance.is_focused().unwrap());
+    assert!(by_distance.effective_threshold_px(max_lod).unwrap() > 1.3);
+    let mut state = 0x1e45_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    for case in 0..3 {
+        let dir = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+        let heading = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+        let camera = earth_camera(&earth, dir, 20.0 + 1_000.0 * unit(), heading);
+        if case == 0 {
+            let mut control = LodTree::new(&earth, by_distance).unwrap();
+            control.update(&earth, &camera).unwrap();
+            let coarse = leaves_coarser_than_asked(&mut control, &lens, &camera, edge);
+            println!("control: {} nodes, {coarse} leaves in view coarser than τ = 1", control.stats().nodes);
+            assert!(coarse > 0, "the control draws what τ = 1 asks");
+        }
+        let mut tree = LodTree::new(&earth, lens).unwrap();
+        let up = camera.position.normalize();
+        // Turned about the vertical, then moved sideways and ahead.
+        let turned = |degrees: f64, sideways: f64, ahead: f64| {
+            let turn = nebula_math::DQuat::from_axis_angle(up, degrees.to_radians());
+            let forward = turn * camera.forward;
+            let right = forward.cross(up).normalize();
+            Camera { position: camera.position + right * sideways + forward.normalize() * ahead, forward, ..camera }
+        };
+        let mut nodes = Vec::new();
+        let path = [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (4.0, 0.0, 0.0), (20.0, 0.0, 0.0), (110.0, 0.0, 0.0)];
+        let path =
+            path.into_iter().chain([(290.0, 0.0, 0.0), (290.0, 20.0, 0.0), (290.0, 100.0, 0.0), (290.0, 100.0, 2e3)]);
+        for (degrees, sideways, ahead) in path {
+            let camera = turned(degrees, sideways, ahead);
+            tree.update(&earth, &camera).unwrap();
+            assert_eq!(tree.screen_space().threshold_px(), 1.0);
+            let coarse = leaves_coarser_than_asked(&mut tree, &lens, &camera, edge);
+            assert_eq!(coarse, 0, "case {case}, turned {degrees}°, {sideways} m aside, {ahead} m ahead");
+            nodes.push(tree.stats().nodes);
+        }
+        let bound = lens.tree_node_bound(max_lod).unwrap();
+        println!("case {case}: nodes {nodes:?} (bound {bound:.0}), refocused {}", tree.stats().refocused);
+        assert!(nodes.iter().all(|&n| n as f64 <= bound), "case {case}: above the bound {bound}");
+        // A turn of 2° or a step of 20 m aside (or any way ahead) stays in
+        // the focus, a turn of 4° or a step of 100 m aside leaves it.
+        assert_eq!(tree.stats().refocused, 6, "case {case}");
     }
 }

@@ -38,6 +38,7 @@ use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use nebula_math::{DVec3, FaceEdge, ScreenSpace};
 use nebula_voxel::{ChunkColumn, ChunkKey, ChunkLayout, CubeFace, LayerView, MAX_LOD, VoxelSource};
 
+use crate::settings::{FOCUS_KEPT_ANGLE, FOCUS_MARGIN_ANGLE, FOCUS_MARGIN_VOXELS};
 use crate::{
     BalanceMode, Camera, ChunkLodContext, CullMargin, FaceDirection, Frustum, Horizon, LodError, LodSettings,
     NeighborLodRelation, NodeBounds,
@@ -72,6 +73,9 @@ pub struct LodStats {
     pub max_neighbor_lod_diff: u8,
     /// Passes of the balance filter ([`BalanceMode::Restricted`]).
     pub balance_passes: usize,
+    /// Times a narrow view's focus was made (at the first update and each
+    /// time the view left the last one, [`LodSettings::surround_fov_y_degrees`]).
+    pub refocused: usize,
 }
 
 #[derive(Clone, Debug)]
@@ -99,6 +103,14 @@ pub struct Cull {
 pub struct LodTree {
     settings: LodSettings,
     screen: ScreenSpace,
+    /// The constants outside a narrow view's focus (`screen` where the
+    /// view is not narrow: [`LodSettings::surround_screen_space`]).
+    surround: ScreenSpace,
+    /// Where a narrow view refines with `screen`'s K: the frustum of the
+    /// camera it was made for, opened by [`FOCUS_MARGIN_ANGLE`] and set
+    /// back by [`FOCUS_MARGIN_VOXELS`]; `None` until the first update and
+    /// for a view that is not narrow.
+    focus: Option<Frustum>,
     layout: ChunkLayout,
     /// Lowest surface radius anywhere (occluder for horizon culling).
     min_surface_radius: f64,
@@ -135,7 +147,7 @@ impl LodTree {
     /// [`LodError`] for bad settings or a source that refuses the roots.
     pub fn new<S: VoxelSource + ?Sized>(source: &S, settings: LodSettings) -> Result<Self, LodError> {
         let layout = *source.layout();
-        let screen = Self::budgeted_screen(&settings, layout.max_lod())?;
+        let (screen, surround) = Self::budgeted_screen(&settings, layout.max_lod())?;
         if settings.finest_lod > layout.max_lod() {
             return Err(LodError::BadFinestLod { finest_lod: settings.finest_lod, max_lod: layout.max_lod() });
         }
@@ -146,6 +158,8 @@ impl LodTree {
         let mut tree = Self {
             settings,
             screen,
+            surround,
+            focus: None,
             layout,
             min_surface_radius: f64::INFINITY,
             errors,
@@ -171,11 +185,13 @@ impl LodTree {
         Ok(tree)
     }
 
-    /// The screen-space constants the tree refines with: the settings'
-    /// τ raised where the node budget needs it.
-    fn budgeted_screen(settings: &LodSettings, max_lod: u8) -> Result<ScreenSpace, LodError> {
-        let tau = settings.effective_threshold_px(max_lod)?;
-        Ok(ScreenSpace::new(settings.screen_height_px, settings.fov_y_degrees, tau)?)
+    /// The screen-space constants the tree refines with, in the view's
+    /// focus and around it: the settings' τ raised where the node budget
+    /// needs it.
+    fn budgeted_screen(settings: &LodSettings, max_lod: u8) -> Result<(ScreenSpace, ScreenSpace), LodError> {
+        let threshold_px = settings.effective_threshold_px(max_lod)?;
+        let budgeted = LodSettings { threshold_px, ..*settings };
+        Ok((budgeted.screen_space()?, budgeted.surround_screen_space()?))
     }
 
     /// The settings in use.
@@ -192,6 +208,27 @@ impl LodTree {
         &self.screen
     }
 
+    /// The screen-space constants the tree refines with outside a narrow
+    /// view's focus ([`LodSettings::surround_screen_space`], τ as in
+    /// [`LodTree::screen_space`]): the same as that where the view is not
+    /// narrow.
+    #[must_use]
+    pub fn surround_space(&self) -> &ScreenSpace {
+        &self.surround
+    }
+
+    /// Where a narrow view refines with its own K
+    /// ([`LodSettings::surround_fov_y_degrees`]): the frustum of the camera
+    /// it was made for, each side opened by 6° and its apex set back so
+    /// that eyes within 32 voxels are inside. It is made again at the
+    /// update whose camera's view, opened by 3° (what a cull ahead takes),
+    /// no longer fits in it. `None` for a view that is not narrow and
+    /// before the first update.
+    #[must_use]
+    pub fn focus(&self) -> Option<&Frustum> {
+        self.focus.as_ref()
+    }
+
     /// Changes the view the tree refines for (a zoom, a resized window, a
     /// quality setting): τ, the screen height and the vertical field of
     /// view. Every node is decided again at the next update; nothing
@@ -205,8 +242,9 @@ impl LodTree {
         if settings == self.settings {
             return Ok(());
         }
-        self.screen = Self::budgeted_screen(&settings, self.layout.max_lod())?;
+        (self.screen, self.surround) = Self::budgeted_screen(&settings, self.layout.max_lod())?;
         self.settings = settings;
+        self.focus = None;
         self.culled = None;
         let columns: Vec<ChunkColumn> = self.nodes.keys().copied().collect();
         self.queue.clear();
@@ -354,8 +392,9 @@ impl LodTree {
         let reach = 2.0 * (d * d - lowest * lowest).sqrt();
         // The coarsest LOD drawn within reach: nodes closer than their
         // split distance are split.
-        let lod =
-            (0..=self.layout.max_lod()).find(|&l| self.split_distance(l) > reach).unwrap_or(self.layout.max_lod());
+        // (Outside a narrow view's focus nodes split nearer: its constants.)
+        let split_distance = |lod: u8| self.surround.transition_distance(self.errors[usize::from(lod)]);
+        let lod = (0..=self.layout.max_lod()).find(|&l| split_distance(l) > reach).unwrap_or(self.layout.max_lod());
         let planet = (lowest - source.geometric_error(lod)).max(self.min_surface_radius);
         Some(self.local_occluder(eye, margin).map_or(planet, |local| local.max(planet)))
     }
@@ -479,6 +518,19 @@ impl LodTree {
         full: bool,
     ) -> Result<LodChanges, LodError> {
         camera.check()?;
+        // A narrow view refines its focus with its own K: once the camera's
+        // view (opened by the margin a cull ahead takes) leaves the focus,
+        // a new one is made around it and every node decided again.
+        let fov = self.settings.fov_y_degrees;
+        let refocus = self.surround.k() < self.screen.k()
+            && !self.focus.is_some_and(|focus| focus.covers_opened(camera, fov, FOCUS_KEPT_ANGLE));
+        if refocus {
+            let margin =
+                CullMargin { angle: FOCUS_MARGIN_ANGLE, distance: FOCUS_MARGIN_VOXELS * self.layout.voxel_edge(0) };
+            self.focus = Some(Frustum::with_margin(camera, fov, margin));
+            self.stats.refocused += 1;
+        }
+        let full = full || refocus;
         let distance = camera.position.length();
         if distance < self.min_surface_radius {
             return Err(LodError::CameraInsidePlanet { distance, min_surface_radius: self.min_surface_radius });
@@ -610,8 +662,9 @@ impl LodTree {
         recurse: bool,
     ) -> Result<(), LodError> {
         *evaluated += 1;
-        let distance = self.nodes[&column].bounds.distance(eye);
-        let split_distance = self.split_distance(column.lod);
+        let bounds = &self.nodes[&column].bounds;
+        let distance = bounds.distance(eye);
+        let split_distance = self.split_distance(column.lod, bounds);
         let merge_distance = split_distance / (1.0 - self.settings.hysteresis);
         let is_split = self.split.contains(&column);
         let (now_split, margin) = if column.lod <= self.settings.finest_lod {
@@ -656,9 +709,15 @@ impl LodTree {
         Ok(())
     }
 
-    /// D_split for a node at `lod`: closer than this, its error exceeds τ.
-    fn split_distance(&self, lod: u8) -> f64 {
-        self.screen.transition_distance(self.errors[usize::from(lod)])
+    /// D_split for a node at `lod` with `bounds`: closer than this, its
+    /// error exceeds τ (with the view's K in a narrow view's focus, the
+    /// surround's outside it).
+    fn split_distance(&self, lod: u8, bounds: &NodeBounds) -> f64 {
+        let screen = match &self.focus {
+            Some(focus) if focus.excludes(bounds) => &self.surround,
+            _ => &self.screen,
+        };
+        screen.transition_distance(self.errors[usize::from(lod)])
     }
 
     fn schedule(&mut self, column: ChunkColumn, margin: f64) {
