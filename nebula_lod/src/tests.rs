@@ -273,30 +273,49 @@ proptest! {
     }
 
     /// The incremental update and the full traversal agree frame by frame
-    /// along any camera path.
+    /// along any camera path: looking down, or through a 12° lens looking
+    /// 10° under the horizon and turning (its focus made again as it goes).
     #[test]
     fn incremental_update_matches_full_traversal(
-        start in prop_oneof![direction(), seam_direction()], steps in proptest::collection::vec((direction(), 0.0f64..400.0, -50.0f64..50.0), 1..12),
-        height in 2.0f64..3_000.0, restricted in any::<bool>(),
+        start in prop_oneof![direction(), seam_direction()],
+        steps in proptest::collection::vec((direction(), 0.0f64..400.0, -50.0f64..50.0, -30.0f64..30.0), 1..12),
+        height in 2.0f64..3_000.0, restricted in any::<bool>(), lens in any::<bool>(),
     ) {
         let source = planet();
         let balance = if restricted { BalanceMode::Restricted } else { BalanceMode::Unrestricted };
-        let mut incremental = LodTree::new(source, settings(balance)).unwrap();
-        let mut full = LodTree::new(source, settings(balance)).unwrap();
+        let settings = if lens { LodSettings { fov_y_degrees: 12.0, ..settings(balance) } } else { settings(balance) };
+        let mut incremental = LodTree::new(source, settings).unwrap();
+        let mut full = LodTree::new(source, settings).unwrap();
         let mut dir = start;
         let mut h = height;
+        let mut heading = 0.0f64;
         let radius = camera_above(&full, dir, 0.0).position.length();
-        for (wind, distance, climb) in steps {
-            let a = incremental.update(source, &camera_above(&incremental, dir, h)).unwrap();
-            let b = full.update_full(source, &camera_above(&full, dir, h)).unwrap();
+        let roots = LodTree::new(source, settings).unwrap();
+        let camera = |dir: DVec3, h: f64, heading: f64| {
+            let camera = camera_above(&roots, dir, h);
+            if !lens {
+                return camera;
+            }
+            let up = dir.normalize();
+            let east = up.any_orthonormal_vector();
+            let level = nebula_math::DQuat::from_axis_angle(up, heading.to_radians()) * east;
+            let down = 10f64.to_radians();
+            Camera { forward: level * down.cos() - up * down.sin(), up, aspect: 1.6, ..camera }
+        };
+        for (wind, distance, climb, turn) in steps {
+            let a = incremental.update(source, &camera(dir, h, heading)).unwrap();
+            let b = full.update_full(source, &camera(dir, h, heading)).unwrap();
             prop_assert_eq!(contexts(&incremental), contexts(&full));
             prop_assert_eq!(a, b);
             // Move along the surface by `distance` metres and climb.
             let tangent = (wind - dir * wind.dot(dir)).normalize_or_zero();
             dir = (dir + tangent * (distance / radius)).normalize();
             h = (h + climb).max(1.0);
+            heading += turn;
         }
         prop_assert!(incremental.stats().nodes_evaluated <= full.stats().nodes_evaluated);
+        prop_assert_eq!(incremental.stats().refocused, full.stats().refocused);
+        prop_assert!(!lens || incremental.stats().refocused >= 1, "a lens is focused at its first update");
     }
 }
 

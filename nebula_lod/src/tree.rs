@@ -518,22 +518,23 @@ impl LodTree {
         full: bool,
     ) -> Result<LodChanges, LodError> {
         camera.check()?;
+        let distance = camera.position.length();
+        if distance < self.min_surface_radius {
+            return Err(LodError::CameraInsidePlanet { distance, min_surface_radius: self.min_surface_radius });
+        }
         // A narrow view refines its focus with its own K: once the camera's
         // view (opened by the margin a cull ahead takes) leaves the focus,
-        // a new one is made around it and every node decided again.
+        // a new one is made around it, and the nodes in one focus and not
+        // the other are decided again.
         let fov = self.settings.fov_y_degrees;
         let refocus = self.surround.k() < self.screen.k()
             && !self.focus.is_some_and(|focus| focus.covers_opened(camera, fov, FOCUS_KEPT_ANGLE));
+        let old_focus = self.focus;
         if refocus {
             let margin =
                 CullMargin { angle: FOCUS_MARGIN_ANGLE, distance: FOCUS_MARGIN_VOXELS * self.layout.voxel_edge(0) };
             self.focus = Some(Frustum::with_margin(camera, fov, margin));
             self.stats.refocused += 1;
-        }
-        let full = full || refocus;
-        let distance = camera.position.length();
-        if distance < self.min_surface_radius {
-            return Err(LodError::CameraInsidePlanet { distance, min_surface_radius: self.min_surface_radius });
         }
         let eye = camera.position;
         if let Some(last) = self.last_camera {
@@ -549,6 +550,9 @@ impl LodTree {
                 self.evaluate(source, root, eye, &mut changed, &mut evaluated, true)?;
             }
         } else {
+            if refocus {
+                self.refocus(source, old_focus, eye, &mut changed, &mut evaluated)?;
+            }
             let mut due = Vec::new();
             while let Some(Reverse((at, _, _, _))) = self.queue.peek() {
                 if f64::from_bits(*at) > self.odometer {
@@ -647,6 +651,36 @@ impl LodTree {
         } else {
             self.split.contains(column)
         }
+    }
+
+    /// Decides again, after the focus moved from `old`, every node whose K
+    /// changed with it (in one focus and not the other, or every node where
+    /// there was none: it changed from the surround's K), walking the tree
+    /// from the roots through its split nodes. The others keep their
+    /// decisions and their checks: their split distance is the same.
+    fn refocus<S: VoxelSource + ?Sized>(
+        &mut self,
+        source: &S,
+        old: Option<Frustum>,
+        eye: DVec3,
+        changed: &mut BTreeSet<ChunkColumn>,
+        evaluated: &mut usize,
+    ) -> Result<(), LodError> {
+        let Some(new) = self.focus else { return Ok(()) };
+        let mut stack: Vec<ChunkColumn> =
+            CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
+        while let Some(column) = stack.pop() {
+            let Some(node) = self.nodes.get(&column) else { continue };
+            let was_in = old.is_some_and(|old| !old.excludes(&node.bounds));
+            // (Nodes this walk made or split were decided with the new one.)
+            if was_in == new.excludes(&node.bounds) && !changed.contains(&column) {
+                self.evaluate(source, column, eye, changed, evaluated, false)?;
+            }
+            if self.split.contains(&column) {
+                stack.extend(children_of(column));
+            }
+        }
+        Ok(())
     }
 
     /// Applies the split/merge rule to `column` and schedules its next
