@@ -187,6 +187,20 @@ fn bad_cameras_and_settings_are_errors_and_change_nothing() {
     assert!(matches!(bad(LodSettings { threshold_px: -1.0, ..LodSettings::default() }), LodError::Math(_)));
     assert!(matches!(bad(LodSettings { hysteresis: 1.0, ..LodSettings::default() }), LodError::BadHysteresis { .. }));
     assert!(matches!(bad(LodSettings { finest_lod: 40, ..LodSettings::default() }), LodError::BadFinestLod { .. }));
+    for surround in [f64::NAN, 0.0, 180.0, -5.0, f64::INFINITY] {
+        let settings = LodSettings { surround_fov_y_degrees: surround, ..LodSettings::default() };
+        assert!(matches!(bad(settings), LodError::Math(_)), "surround field of view {surround}");
+    }
+    // A narrow lens keeps its focus through a refused camera.
+    let mut lens =
+        LodTree::new(source, LodSettings { fov_y_degrees: 12.0, ..settings(BalanceMode::Unrestricted) }).unwrap();
+    lens.update(source, &good).unwrap();
+    let focus = format!("{:?}", lens.focus().expect("a 12° lens is focused"));
+    let turned = Camera { forward: good.up, up: good.forward, ..good };
+    assert!(lens.update(source, &Camera { aspect: 0.0, ..turned }).is_err());
+    assert!(lens.update(source, &Camera { position: inside.position, ..turned }).is_err());
+    assert_eq!(format!("{:?}", lens.focus().unwrap()), focus);
+    assert_eq!(lens.stats().refocused, 1);
 }
 
 #[test]
