@@ -14,6 +14,10 @@
 //!    (a function of the voxels on both sides), so neighbours agree on their
 //!    shared vertices bit for bit; sides meeting another LOD take every
 //!    lattice point unless only draw-time skirts close them;
+//!    then the vertices strictly inside flat regions (one plane, material
+//!    and light) left out where a fan from a neighbour covers the same
+//!    region, before and while morphing (`collapse`: two triangles fewer
+//!    each);
 //! 4. [`constrain_edge_vertices`] for sides whose neighbour is coarser, by
 //!    any LOD difference;
 //! 5. [`generate_skirt`] on sides that meet another LOD, [`skirt_depth`] deep,
@@ -57,6 +61,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod collapse;
 mod error;
 mod greedy;
 mod mesh;

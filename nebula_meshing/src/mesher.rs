@@ -57,6 +57,7 @@ use nebula_voxel::{
 };
 
 use crate::MeshError;
+use crate::collapse::FlatInteriors;
 use crate::greedy::GreedyQuads;
 use crate::mesh::{ChunkMesh, VertexSource};
 use crate::stitch::{StitchedSide, padded, plane_cells, solid};
@@ -145,6 +146,10 @@ pub struct ChunkMesher {
     /// [`PLUG_MARGIN`], except where a test plugs up to the boundary to see
     /// the seams open.
     pub(crate) plug_margin: u32,
+    /// Scratch of the flat regions' inner vertices' removal.
+    pub(crate) flat_interiors: FlatInteriors,
+    /// Whether those are removed (tests compare with them kept).
+    pub(crate) collapse_flat_interiors: bool,
 }
 
 /// What a vertex is made for: a face looking towards `side` of voxel
@@ -199,6 +204,8 @@ impl ChunkMesher {
             plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             plugs_for: None,
             plug_margin: PLUG_MARGIN,
+            flat_interiors: FlatInteriors::default(),
+            collapse_flat_interiors: true,
         }
     }
 
@@ -452,6 +459,9 @@ impl ChunkMesher {
         }
         self.greedy.quads.groups = groups;
         let result = self.zip_coarse_edges(voxels, layout, mesh);
+        if self.collapse_flat_interiors {
+            self.flat_interiors.collapse(mesh);
+        }
         mesh.surface_index_count = mesh.indices.len();
         self.plugs_for = None;
         result
