@@ -221,7 +221,9 @@ impl LodSettings {
     /// radius r ≥ h that is at most πβ (r² / 2 + h r) of its π r²: β/2 of
     /// every LOD's disc, plus β h / r, which summed over the LODs whose
     /// disc reaches the ground (r ≥ h, doubling from one to the next) is
-    /// at most 2β in all.
+    /// at most 2β in all; and where a circle lies wholly inside the cone
+    /// (an eye looking steeply down, ρ ≤ h·tan β) all of it, at most
+    /// (4/3)·tan² β of a disc more over those LODs.
     #[must_use]
     pub fn node_bound_focused(k_over_tau: f64, surround_k_over_tau: f64, focus_half_angle: f64, max_lod: u8) -> f64 {
         let disc =
@@ -233,7 +235,13 @@ impl LodSettings {
         let beta = focus_half_angle.clamp(0.0, std::f64::consts::PI);
         let (surround, focus) = (disc(surround_k_over_tau, 0.0), disc(k_over_tau, back));
         let per_lod = surround + 0.5 * beta * focus;
+        // Where the ground's circle lies wholly inside the cone (an eye
+        // looking steeply down) its share is 1, not the arc's: within
+        // ρ ≤ h·tan β, π h² tan² β of each LOD's disc, at most (4/3)·tan² β
+        // of a disc over the LODs whose disc reaches the ground.
+        let inside = 4.0 / 3.0 * beta.min(1.5).tan().powi(2) * focus;
         6.0 + 2.0 * beta * focus
+            + inside
             + (0..max_lod).map(|lod| per_lod.min(6.0 * 4f64.powi(i32::from(max_lod - lod)))).sum::<f64>()
     }
 }

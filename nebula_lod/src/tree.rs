@@ -654,8 +654,9 @@ impl LodTree {
     }
 
     /// Decides again, after the focus moved from `old`, every node whose K
-    /// changed with it (in one focus and not the other, or every node where
-    /// there was none: it changed from the surround's K), walking the tree
+    /// changed with it (in one focus and not the other; where there was
+    /// none, every node had the view's K, so those outside the new one),
+    /// walking the tree
     /// from the roots through its split nodes. The others keep their
     /// decisions and their checks: their split distance is the same.
     fn refocus<S: VoxelSource + ?Sized>(
@@ -671,7 +672,8 @@ impl LodTree {
             CubeFace::ALL.iter().map(|&face| ChunkColumn { face, lod: self.layout.max_lod(), x: 0, y: 0 }).collect();
         while let Some(column) = stack.pop() {
             let Some(node) = self.nodes.get(&column) else { continue };
-            let was_in = old.is_some_and(|old| !old.excludes(&node.bounds));
+            // With no focus before, every node had the view's K (`split_distance`).
+            let was_in = old.is_none_or(|old| !old.excludes(&node.bounds));
             // (Nodes this walk made or split were decided with the new one.)
             if was_in == new.excludes(&node.bounds) && !changed.contains(&column) {
                 self.evaluate(source, column, eye, changed, evaluated, false)?;

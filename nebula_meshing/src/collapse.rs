@@ -17,11 +17,20 @@
 //! (the link is then star-shaped from it; no vertex lies on a new edge, so
 //! the mesh stays free of T-junctions). The outline of the region, and
 //! every vertex on a chunk boundary plane, is untouched: neighbours see the
-//! same vertices as before. The geomorph moves each vertex to its lattice
-//! point rounded down to even ([`ChunkMesh`]'s morph targets); a new
-//! triangle must keep its orientation all the way there too (a quadratic
-//! in the morph factor, tested exactly), so no triangle folds over while a
-//! chunk morphs. All in integer lattice coordinates: the decision is exact.
+//! same vertices as before; so is every link that touches the plane of a
+//! side towards another LOD (constraining the seam moves vertices there
+//! later). The geomorph moves each
+//! vertex towards its lattice point rounded down to even ([`ChunkMesh`]'s
+//! morph targets); a new triangle must keep its orientation all the way
+//! there when its three vertices morph together (a quadratic in the morph
+//! factor, tested exactly in integer lattice coordinates), the standard the
+//! greedy quads' own fans meet. The shader morphs each vertex by a factor
+//! from its own distance, so the three factors of a long triangle differ a
+//! little (up to 0.012 a voxel apart at K/τ ≥ 300 px/rad); a long sliver
+//! could then turn over near the end of the morph, as a fan's near-degenerate
+//! triangles can: it would overdraw a sliver of its own plane, never open a
+//! hole (the region's outline is shared and every point inside it stays
+//! covered). Among the link vertices that pass, the first is taken.
 
 use nebula_voxel::CHUNK_SIZE;
 
@@ -76,8 +85,9 @@ struct LinkEdge {
 struct Flat {
     at: [i64; 2],
     morph: [i64; 2],
-    /// Off every chunk boundary plane (no seam step moves it later).
-    inside: bool,
+    /// Off the planes of the chunk's sides towards another LOD (where
+    /// constraining the seam moves vertices and their targets later).
+    steady: bool,
 }
 
 fn cross(a: [i64; 2], b: [i64; 2]) -> i64 {
@@ -89,9 +99,10 @@ fn minus(a: [i64; 2], b: [i64; 2]) -> [i64; 2] {
 }
 
 /// Whether triangle (w, a, b) turns the way `sign` says (non-zero at the
-/// start) and never turns the other way while its vertices morph: its
-/// doubled area along the morph, A + B·t + C·t² for t in [0, 1], stays on
-/// `sign`'s side of 0.
+/// start) and never turns the other way while its vertices morph together:
+/// its doubled area along the morph, A + B·t + C·t² for t in [0, 1], stays
+/// on `sign`'s side of 0 (it may reach 0 where the morph's targets merge,
+/// as the greedy quads' fans do).
 fn keeps_orientation(w: Flat, a: Flat, b: Flat, sign: i64) -> bool {
     let (e1, e2) = (minus(a.at, w.at), minus(b.at, w.at));
     let moved = |p: Flat| minus(p.morph, p.at);
@@ -109,9 +120,12 @@ impl FlatInteriors {
     /// Removes what it can of the vertices strictly inside flat regions of
     /// `mesh`'s triangles (all of its indices are surface triangles: call
     /// it before skirts), keeping every surface side's range of
-    /// [`ChunkMesh::surface_side_ranges`] in place. Returns the vertices
-    /// removed (two triangles fewer each).
-    pub(crate) fn collapse(&mut self, mesh: &mut ChunkMesh) -> usize {
+    /// [`ChunkMesh::surface_side_ranges`] in place. `moving`: the sides (as
+    /// in [`FaceDirection::HORIZONTAL`](nebula_math::FaceDirection::HORIZONTAL))
+    /// whose boundary vertices a seam step moves later (dense or stitched):
+    /// no fan touching them is made. Returns the vertices removed (two
+    /// triangles fewer each).
+    pub(crate) fn collapse(&mut self, mesh: &mut ChunkMesh, moving: [bool; 4]) -> usize {
         let vertices = mesh.vertices.len();
         let triangles = mesh.indices.len() / 3;
         if triangles == 0 {
@@ -120,7 +134,7 @@ impl FlatInteriors {
         self.build_incidence(mesh, vertices, triangles);
         let mut removed = 0;
         for v in 0..vertices as u32 {
-            if self.collapse_vertex(mesh, v) {
+            if self.collapse_vertex(mesh, v, moving) {
                 removed += 1;
             }
         }
@@ -163,8 +177,17 @@ impl FlatInteriors {
 
     /// The in-plane coordinates of vertex `v` of a face looking along
     /// `axis`, if it is a surface vertex of such a face at `level` along
-    /// it with `attributes`.
-    fn flat(mesh: &ChunkMesh, v: u32, axis: usize, level: i32, attributes: (u8, u8)) -> Option<Flat> {
+    /// it with `attributes`; `moving`: the sides (as in
+    /// [`FaceDirection::HORIZONTAL`](nebula_math::FaceDirection::HORIZONTAL))
+    /// whose vertices a seam step moves later.
+    fn flat(
+        mesh: &ChunkMesh,
+        v: u32,
+        axis: usize,
+        level: i32,
+        attributes: (u8, u8),
+        moving: [bool; 4],
+    ) -> Option<Flat> {
         let VertexSource::Surface { local, side } = mesh.sources[v as usize] else { return None };
         let vertex = &mesh.vertices[v as usize];
         if side.axis() != axis || local[axis] != level || (vertex.material, vertex.sky_light) != attributes {
@@ -172,13 +195,16 @@ impl FlatInteriors {
         }
         let (p, q) = ((axis + 1) % 3, (axis + 2) % 3);
         let even = |c: i32| i64::from(c & !1);
-        let inside = local.iter().all(|&c| c > 0 && c < CHUNK_SIZE as i32);
-        Some(Flat { at: [i64::from(local[p]), i64::from(local[q])], morph: [even(local[p]), even(local[q])], inside })
+        let last = CHUNK_SIZE as i32;
+        // Planes of `FaceDirection::HORIZONTAL`'s order: x = 32, x = 0, z = 32, z = 0.
+        let on = [local[0] == last, local[0] == 0, local[2] == last, local[2] == 0];
+        let steady = !on.iter().zip(moving).any(|(&on, moving)| on && moving);
+        Some(Flat { at: [i64::from(local[p]), i64::from(local[q])], morph: [even(local[p]), even(local[q])], steady })
     }
 
     /// Removes vertex `v` if it lies strictly inside a flat region and
     /// some vertex of its link takes its triangles over.
-    fn collapse_vertex(&mut self, mesh: &mut ChunkMesh, v: u32) -> bool {
+    fn collapse_vertex(&mut self, mesh: &mut ChunkMesh, v: u32, moving: [bool; 4]) -> bool {
         let VertexSource::Surface { local, side } = mesh.sources[v as usize] else { return false };
         let last = CHUNK_SIZE as i32;
         if self.removed[v as usize] || local.iter().any(|&c| c <= 0 || c >= last) {
@@ -186,7 +212,7 @@ impl FlatInteriors {
         }
         let axis = side.axis();
         let attributes = (mesh.vertices[v as usize].material, mesh.vertices[v as usize].sky_light);
-        let flat = |u: u32| Self::flat(mesh, u, axis, local[axis], attributes);
+        let flat = |u: u32| Self::flat(mesh, u, axis, local[axis], attributes, moving);
         let Some(centre) = flat(v) else { return false };
         // The link: (a, b) for each live triangle (v, a, b) around v (its
         // own and those of the vertices it took over), with the triangle.
@@ -247,19 +273,24 @@ impl FlatInteriors {
         if sign == 0 || (1..m).any(|i| turn(i) != sign) {
             return false;
         }
-        // A target off the chunk's boundary planes: constraining a seam
-        // moves vertices there after this.
+        // Every link vertex off the planes of sides towards another LOD:
+        // constraining a seam moves vertices there after this, and their
+        // morph targets with them. Then the first link vertex whose fan keeps
+        // every triangle's orientation through the morph.
+        if !ring.iter().all(|point| point.steady) {
+            return false;
+        }
         #[cfg(test)]
         let unchecked = self.unchecked;
         #[cfg(not(test))]
         let unchecked = false;
-        let Some(target) = (0..m).find(|&j| {
+        let fan = |j: usize| {
             unchecked
-                || ring[j].inside
-                    && (0..m)
-                        .filter(|&i| i != j && link[i].next != j)
-                        .all(|i| keeps_orientation(ring[j], ring[i], ring[link[i].next], sign))
-        }) else {
+                || (0..m)
+                    .filter(|&i| i != j && link[i].next != j)
+                    .all(|i| keeps_orientation(ring[j], ring[i], ring[link[i].next], sign))
+        };
+        let Some(target) = (0..m).find(|&j| fan(j)) else {
             return false;
         };
         let w = link[target].a;

@@ -460,7 +460,8 @@ impl ChunkMesher {
         self.greedy.quads.groups = groups;
         let result = self.zip_coarse_edges(voxels, layout, mesh);
         if self.collapse_flat_interiors {
-            self.flat_interiors.collapse(mesh);
+            let moving = [0, 1, 2, 3].map(|k| self.dense_sides[k] || self.stitch_coarser[k].is_some());
+            self.flat_interiors.collapse(mesh, moving);
         }
         mesh.surface_index_count = mesh.indices.len();
         self.plugs_for = None;

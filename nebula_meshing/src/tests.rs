@@ -1653,8 +1653,10 @@ fn with_and_without_inner_vertices(voxels: &ChunkVoxels, unchecked: bool) -> (Ch
     (kept, mesher.mesh(voxels, planet().layout()).unwrap())
 }
 
-/// Every triangle of `mesh` lying in a plane keeps its orientation all the
-/// way to its morph targets (lattice points rounded down to even).
+/// The triangles of `mesh` lying in a plane that turn the other way at
+/// some point of the morph, their three vertices moving together towards
+/// their morph targets (lattice points rounded down to even), tried at 64
+/// steps.
 fn folds_while_morphing(mesh: &ChunkMesh) -> usize {
     let mut folds = 0;
     for (s, range) in mesh.surface_side_ranges().iter().enumerate() {
