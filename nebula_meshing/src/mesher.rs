@@ -461,7 +461,28 @@ impl ChunkMesher {
         let result = self.zip_coarse_edges(voxels, layout, mesh);
         if self.collapse_flat_interiors {
             let moving = [0, 1, 2, 3].map(|k| self.dense_sides[k] || self.stitch_coarser[k].is_some());
-            self.flat_interiors.collapse(mesh, moving);
+            // The four cells around the point in its plane: solid of one
+            // material behind the face, not solid in front (read straight
+            // from the padded array: a rough chunk asks this of most of its
+            // vertices).
+            let slice = voxels.as_slice();
+            let stride = [1i32, PADDED_CHUNK_SIZE as i32, (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE) as i32];
+            let flat_around = |local: [i32; 3], side: FaceDirection| {
+                let axis = side.axis();
+                let (p, q) = ((axis + 1) % 3, (axis + 2) % 3);
+                // The cell at the point's padded coordinates is the one on
+                // the far side of it along every axis.
+                let at = (local[0] + 1) * stride[0] + (local[1] + 1) * stride[1] + (local[2] + 1) * stride[2];
+                debug_assert_eq!(at as u32, PaddedChunkShape::linearize(local.map(|c| (c + 1) as u32)));
+                let (behind, front) = if side.is_positive() { (-stride[axis], 0) } else { (0, -stride[axis]) };
+                let first = slice[(at + behind - stride[p] - stride[q]) as usize];
+                [0, stride[p], stride[q], stride[p] + stride[q]].iter().all(|&across| {
+                    let cell = at - stride[p] - stride[q] + across;
+                    let (solid, open) = (slice[(cell + behind) as usize], slice[(cell + front) as usize]);
+                    solid.is_solid() && !open.is_solid() && solid.material() == first.material()
+                })
+            };
+            self.flat_interiors.collapse(mesh, moving, flat_around);
         }
         mesh.surface_index_count = mesh.indices.len();
         self.plugs_for = None;
