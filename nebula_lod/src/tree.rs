@@ -393,8 +393,9 @@ impl LodTree {
         // The coarsest LOD drawn within reach: nodes closer than their
         // split distance are split.
         // (Outside a narrow view's focus nodes split nearer: its constants.)
-        let split_distance = |lod: u8| self.surround.transition_distance(self.errors[usize::from(lod)]);
-        let lod = (0..=self.layout.max_lod()).find(|&l| split_distance(l) > reach).unwrap_or(self.layout.max_lod());
+        let lod = (0..=self.layout.max_lod())
+            .find(|&l| self.transition_distance(&self.surround, l) > reach)
+            .unwrap_or(self.layout.max_lod());
         let planet = (lowest - source.geometric_error(lod)).max(self.min_surface_radius);
         Some(self.local_occluder(eye, margin).map_or(planet, |local| local.max(planet)))
     }
@@ -753,6 +754,11 @@ impl LodTree {
             Some(focus) if focus.excludes(bounds) => &self.surround,
             _ => &self.screen,
         };
+        self.transition_distance(screen, lod)
+    }
+
+    /// D_split at `lod` with `screen`'s constants.
+    fn transition_distance(&self, screen: &ScreenSpace, lod: u8) -> f64 {
         screen.transition_distance(self.errors[usize::from(lod)])
     }
 

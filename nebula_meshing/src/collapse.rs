@@ -168,7 +168,7 @@ impl FlatInteriors {
             }
         }
         if removed > 0 {
-            self.compact(mesh, vertices, triangles);
+            self.compact(mesh, triangles);
         }
         removed
     }
@@ -233,10 +233,10 @@ impl FlatInteriors {
 
     /// Removes vertex `v` if it lies strictly inside a flat region and
     /// some vertex of its link takes its triangles over.
+    /// `v` is a candidate: a surface vertex strictly inside the chunk.
     fn collapse_vertex(&mut self, mesh: &mut ChunkMesh, v: u32, moving: [bool; 4]) -> bool {
         let VertexSource::Surface { local, side } = mesh.sources[v as usize] else { return false };
-        let last = CHUNK_SIZE as i32;
-        if self.removed[v as usize] || local.iter().any(|&c| c <= 0 || c >= last) {
+        if self.removed[v as usize] {
             return false;
         }
         let axis = side.axis();
@@ -344,7 +344,7 @@ impl FlatInteriors {
 
     /// Drops the dead triangles and the removed vertices, keeping the
     /// order of both and each side's range in step.
-    fn compact(&mut self, mesh: &mut ChunkMesh, vertices: usize, triangles: usize) {
+    fn compact(&mut self, mesh: &mut ChunkMesh, triangles: usize) {
         self.kept_before.clear();
         self.kept_before.reserve(triangles + 1);
         let mut kept = 0u32;
@@ -365,23 +365,6 @@ impl FlatInteriors {
             }
         }
         mesh.indices.truncate(write);
-        self.remap.clear();
-        let mut next = 0u32;
-        for v in 0..vertices {
-            self.remap.push(next);
-            next += u32::from(!self.removed[v]);
-        }
-        let removed = &self.removed;
-        let mut keep = (0..vertices).map(|v| !removed[v]);
-        mesh.vertices.retain(|_| keep.next().unwrap_or(true));
-        let mut keep = (0..vertices).map(|v| !removed[v]);
-        mesh.world.retain(|_| keep.next().unwrap_or(true));
-        let mut keep = (0..vertices).map(|v| !removed[v]);
-        mesh.morph_world.retain(|_| keep.next().unwrap_or(true));
-        let mut keep = (0..vertices).map(|v| !removed[v]);
-        mesh.sources.retain(|_| keep.next().unwrap_or(true));
-        for i in &mut mesh.indices {
-            *i = self.remap[*i as usize];
-        }
+        mesh.remove_vertices(&self.removed, &mut self.remap);
     }
 }

@@ -391,6 +391,31 @@ impl ChunkMesh {
         index
     }
 
+    /// Drops every vertex `removed` marks (none of them in a triangle any
+    /// more), keeping the others' order, from every per-vertex list, and
+    /// renumbers the indices; `remap` is scratch (each vertex's new index).
+    pub(crate) fn remove_vertices(&mut self, removed: &[bool], remap: &mut Vec<u32>) {
+        debug_assert_eq!(removed.len(), self.vertices.len());
+        remap.clear();
+        let mut next = 0u32;
+        for &gone in removed {
+            remap.push(next);
+            next += u32::from(!gone);
+        }
+        fn keep<T>(list: &mut Vec<T>, removed: &[bool]) {
+            let mut gone = removed.iter();
+            list.retain(|_| !gone.next().copied().unwrap_or(false));
+        }
+        keep(&mut self.vertices, removed);
+        keep(&mut self.world, removed);
+        keep(&mut self.morph_world, removed);
+        keep(&mut self.sources, removed);
+        for index in &mut self.indices {
+            debug_assert!(!removed[*index as usize], "a removed vertex is still in a triangle");
+            *index = remap[*index as usize];
+        }
+    }
+
     /// Moves vertex `index` to `world` (f64) with morph target `morph`, and
     /// marks it constrained.
     pub(crate) fn move_vertex(&mut self, index: usize, world: DVec3, morph: DVec3) {
