@@ -155,11 +155,19 @@ impl Flight {
         let (a, b) = (self.keys[i - 1], self.keys[i]);
         let s = (t - a.t) / (b.t - a.t);
         let up = match (a.up, b.up) {
-            (Some(u), Some(v)) => Some(u.lerp(v, s)),
+            (Some(u), Some(v)) => Some(lerp(u, v, s)),
             (u, v) => u.or(v),
         };
-        Keyframe { t, pos: a.pos.lerp(b.pos, s), look_at: a.look_at.lerp(b.look_at, s), up }
+        Keyframe { t, pos: lerp(a.pos, b.pos, s), look_at: lerp(a.look_at, b.look_at, s), up }
     }
+}
+
+/// `a + (b − a)·s`: between equal keyframes the keyframe itself, bit for
+/// bit, as a camera held still is (glam's `lerp`, `a·(1 − s) + b·s`, moved
+/// it by its last bits every frame, and a still camera's plans were made
+/// anew each frame for it).
+fn lerp(a: DVec3, b: DVec3, s: f64) -> DVec3 {
+    a + (b - a) * s
 }
 
 /// One rendered frame of a flight.
@@ -428,6 +436,15 @@ mod tests {
         assert_eq!(mid.up, Some(DVec3::Y), "one side's up stands for both");
         assert_eq!(flight.pose(9.0).pos, DVec3::new(4.0, 0.0, 10.0), "clamped");
         assert_eq!(flight.pose(-1.0).pos, DVec3::new(0.0, 0.0, 10.0), "clamped");
+        // A hold between equal keyframes at Earth coordinates is the
+        // keyframe bit for bit all through (a still camera's plans are
+        // reused only for the same camera); glam's lerp is not.
+        let at = DVec3::new(6_218_042.78, 1_243_608.56, 621_804.28);
+        let key =
+            |t: f64| format!(r#"{{"t": {t}, "pos": [{:?}, {:?}, {:?}], "look_at": [0, 0, 0]}}"#, at.x, at.y, at.z);
+        let hold = Flight::from_json(&format!("[{}, {}]", key(0.0), key(25.0))).expect("valid");
+        assert!((0..750).all(|k| hold.pose(f64::from(k) / 30.0).pos == at), "a hold moved");
+        assert!((0..750).any(|k| at.lerp(at, f64::from(k) / 750.0) != at), "glam's lerp held still too");
         for (text, wants) in [
             ("{}", "non-empty JSON array"),
             ("[]", "non-empty JSON array"),

@@ -23,7 +23,10 @@ use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use nebula_lod::{Camera, Cull, CullMargin, LodTree};
 use nebula_voxel::{ChunkColumn, ChunkKey, VoxelSource};
 
-use crate::select::{Plan, SelectInput, SelectSettings, Selection, plan, repeatable_until};
+use crate::select::{
+    Plan, SelectInput, SelectSettings, Selection, asks_prefetching_only, plan, plan_prefetch, repeatable_until,
+    settled_view,
+};
 use crate::stream::{ColumnStore, Failure, MeshHandle};
 
 /// The LOD thread's priority, on `thread-priority`'s cross-platform scale
@@ -117,6 +120,13 @@ pub(crate) struct Outcome<H> {
     /// The plan is the one before again ([`Repeatable`]), and so is the
     /// tree's cull.
     pub(crate) repeated: bool,
+    /// The plan is a settled view's with new prefetch jobs
+    /// ([`SettledView`]), not planned in full.
+    pub(crate) prefetch_only: bool,
+    /// Where a prefetch-only plan differed from the full plan made beside
+    /// it to check it (tests only): what differed.
+    #[cfg(test)]
+    pub(crate) prefetch_mismatch: Option<&'static str>,
 }
 
 /// The frame thread's end of the LOD thread.
@@ -135,6 +145,8 @@ pub(crate) struct LodThread<S, H> {
     copies: u64,
     /// Plans received that were the one before again.
     repeats: u64,
+    /// Plans received that were prefetch-only ([`SettledView`]).
+    prefetch_plans: u64,
 }
 
 impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
@@ -155,6 +167,7 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             holding: None,
             copies: 0,
             repeats: 0,
+            prefetch_plans: 0,
         })
     }
 
@@ -180,6 +193,7 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
         let outcome = self.outcomes.get_mut().ok()?.recv().ok()?;
         self.copies += u64::from(matches!(outcome.tree, Some(MadeTree::Whole(..))));
         self.repeats += u64::from(outcome.repeated);
+        self.prefetch_plans += u64::from(outcome.prefetch_only);
         Some(outcome)
     }
 
@@ -198,6 +212,11 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
     /// cull alone).
     pub(crate) fn copies(&self) -> u64 {
         self.copies
+    }
+
+    /// Prefetch-only plans received so far ([`SettledView`]).
+    pub(crate) fn prefetch_plans(&self) -> u64 {
+        self.prefetch_plans
     }
 
     /// Plans received that were the one before again (a still camera over
@@ -277,6 +296,46 @@ impl<H> Repeatable<H> {
     }
 }
 
+/// The view's part of a plan of a settled view ([`settled_view`]), for
+/// the plans after it that only prefetching changes: while the camera, its
+/// margin, the tree and the settings (the frame aside) stay, and none of
+/// the cached columns that plan read changes (each mesh that comes for
+/// prefetching changes another), the next plans are this one's view with
+/// new prefetch jobs ([`plan_prefetch`]).
+struct SettledView<H> {
+    /// The eye, margin and settings (frame aside) it was made from.
+    made_from: (Camera, CullMargin, SelectSettings),
+    /// The cached columns' change log position ([`ColumnStore::touch_count`])
+    /// up to which the changes are known to leave it as it is.
+    checked_to: usize,
+    /// The cached columns the view's part read: every visible leaf's and
+    /// every drawn column's.
+    read: HashSet<ChunkColumn>,
+    plan: Plan<H>,
+}
+
+impl<H> SettledView<H> {
+    /// Whether it is still the view's part of a plan from `input`, the
+    /// tree unchanged since (else the thread dropped it), made from
+    /// `made_from`; notes the cached columns' changes as checked.
+    fn serves<S: ?Sized>(
+        &mut self,
+        input: &SelectInput<'_, S, H>,
+        selection: &Selection,
+        made_from: (Camera, CullMargin, SelectSettings),
+    ) -> bool {
+        if self.made_from != made_from || !asks_prefetching_only(input, selection) {
+            return false;
+        }
+        let Some(touched) = input.columns.touched_since(self.checked_to) else { return false };
+        if touched.iter().any(|column| self.read.contains(column)) {
+            return false;
+        }
+        self.checked_to = input.columns.touch_count();
+        true
+    }
+}
+
 /// The settings a plan is made with, the frame aside (see [`Repeatable`]).
 fn frameless(settings: SelectSettings) -> SelectSettings {
     SelectSettings { frame: 0, ..settings }
@@ -297,6 +356,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
     // since: a still camera over a settled tree is not culled again.
     let mut culled_for: Option<(Camera, CullMargin)> = None;
     let mut repeatable: Option<Repeatable<H>> = None;
+    let mut settled: Option<SettledView<H>> = None;
     let mut plans_made = 0;
     while let Ok(first) = inbox.recv() {
         // At most one update is in flight: the frame thread takes each
@@ -309,19 +369,19 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
                 }
                 Request::Refresh { voxels, columns } => {
                     commands = sequence;
-                    (sent, culled_for, repeatable) = (None, None, None);
+                    (sent, culled_for, repeatable, settled) = (None, None, None, None);
                     // A failing source leaves these bounds old here as on
                     // the frame thread, which reports it.
                     let _ = tree.refresh_bounds(&*voxels, columns);
                 }
                 Request::SetView { threshold_px, screen_height_px, fov_y_degrees } => {
                     commands = sequence;
-                    (sent, culled_for, repeatable) = (None, None, None);
+                    (sent, culled_for, repeatable, settled) = (None, None, None, None);
                     let _ = tree.set_view(threshold_px, screen_height_px, fov_y_degrees);
                 }
                 Request::Replace(replacement) => {
                     commands = sequence;
-                    (sent, culled_for, repeatable) = (None, None, None);
+                    (sent, culled_for, repeatable, settled) = (None, None, None, None);
                     tree = *replacement;
                 }
             }
@@ -340,7 +400,7 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
         }));
         if !matches!(updated, Ok(Ok(false))) {
             // Changed, or maybe part-way through a change.
-            (culled_for, repeatable) = (None, None);
+            (culled_for, repeatable, settled) = (None, None, None);
         }
         let changed = match updated {
             Ok(Ok(changed)) => Some(changed),
@@ -364,6 +424,9 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
         // A panic in the voxel source while planning leaves the plan to the
         // frame thread, which reports it.
         let mut repeated = false;
+        let mut prefetch_only = false;
+        #[cfg(test)]
+        let mut prefetch_mismatch = None;
         let mut plan_number = plans_made;
         let plan = changed.and_then(|_| {
             let made_from = (camera, margin, columns.changes(), frameless(settings));
@@ -384,10 +447,44 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
             }
             plans_made += 1;
             plan_number = plans_made;
+            // Only prefetching changed since a settled view's plan: its
+            // view again, with the next prefetch jobs.
+            let view_made_from = (camera, margin, frameless(settings));
+            if let Some(view) = settled.as_mut()
+                && view.serves(&input, &selection, view_made_from)
+            {
+                #[cfg(test)]
+                let mut check = (*selection).clone();
+                let made = plan_prefetch(&input, &mut selection, &view.plan);
+                #[cfg(test)]
+                {
+                    let full = plan(&input, &mut check);
+                    prefetch_mismatch = if !crate::select::same_plan(&made, &full) {
+                        Some("the plan")
+                    } else if check.prefetch_jobs != selection.prefetch_jobs {
+                        Some("the prefetch jobs left")
+                    } else {
+                        None
+                    };
+                }
+                prefetch_only = true;
+                repeatable = repeatable_until(&input, &selection, &made).map(|until| Repeatable {
+                    made_from,
+                    until,
+                    plan: made.repeat(),
+                    number: plan_number,
+                });
+                return Some(made);
+            }
             let plan = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| plan(&input, &mut selection))).ok();
             repeatable = plan.as_ref().and_then(|plan| {
                 let until = repeatable_until(&input, &selection, plan)?;
                 Some(Repeatable { made_from, until, plan: plan.repeat(), number: plan_number })
+            });
+            settled = plan.as_ref().filter(|plan| settled_view(&input, &selection, plan)).map(|plan| {
+                let mut read: HashSet<ChunkColumn> = tree.visible_leaves().iter().copied().collect();
+                read.extend(plan.draw.columns.iter().map(|&(column, _)| column));
+                SettledView { made_from: view_made_from, checked_to: columns.touch_count(), read, plan: plan.repeat() }
             });
             plan
         });
@@ -405,7 +502,17 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
                 MadeTree::Whole(Box::new(tree.clone()), next_copy)
             }
         });
-        let outcome = Outcome { tree: made, commands, selection: Some(selection), plan, plan_number, repeated };
+        let outcome = Outcome {
+            tree: made,
+            commands,
+            selection: Some(selection),
+            plan,
+            plan_number,
+            repeated,
+            prefetch_only,
+            #[cfg(test)]
+            prefetch_mismatch,
+        };
         if outbox.send(outcome).is_err() {
             return;
         }

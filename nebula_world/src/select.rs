@@ -37,6 +37,7 @@ const PLANNED_VIEW_ANGLE_DEGREES: f64 = 1.0;
 
 /// What the selection keeps from frame to frame: moved to the LOD thread
 /// with each request for a plan and back with the plan.
+#[cfg_attr(test, derive(Clone))]
 pub(crate) struct Selection {
     /// Sets filled each frame, kept for their allocations.
     scratch: SelectScratch,
@@ -56,6 +57,10 @@ pub(crate) struct Selection {
     /// Columns' tight tops ([`VoxelSource::surface_top_radius`]), asked
     /// for those the ground in front might hide.
     pub(crate) tops: HashMap<ChunkColumn, f64>,
+    /// Prefetch-only plans ([`plan_prefetch`]) queue no job: a test breaks
+    /// them so to see the full plan made beside each catch it.
+    #[cfg(test)]
+    pub(crate) prefetch_plans_queue_nothing: bool,
 }
 
 impl Selection {
@@ -78,12 +83,15 @@ impl Selection {
             tree_changed: true,
             keep: HashSet::default(),
             view_busy: true,
+            #[cfg(test)]
+            prefetch_plans_queue_nothing: false,
         }
     }
 }
 
 /// The sets [`plan`] fills each frame.
 #[derive(Default)]
+#[cfg_attr(test, derive(Clone))]
 struct SelectScratch {
     /// Stand-ins drawn for leaves not ready.
     ancestors: HashSet<ChunkColumn>,
@@ -252,8 +260,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         options,
         prefetch,
         room_to_prefetch,
-        free_after_frames,
-        near_budget,
+        free_after_frames: _,
+        near_budget: _,
         camera,
         eye_margin,
         sample_tops,
@@ -272,8 +280,9 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     let mut edge_stand_ins: HashMap<ChunkColumn, Vec<(ChunkColumn, NodeBounds)>> = HashMap::default();
     let layout = voxels.layout();
     let max_lod = layout.max_lod();
-    let Selection { scratch, under_sea: memo, prefetch_jobs, prefetched_at, tree_changed, keep, view_busy, tops } =
-        selection;
+    let Selection {
+        scratch, under_sea: memo, prefetch_jobs, prefetched_at, tree_changed, keep, view_busy, tops, ..
+    } = selection;
     let SelectScratch { ancestors, hidden_tops, drawn_set, seen, climbs, stand_in_climbs } = scratch;
     climbs.clear();
     stand_in_climbs.clear();
@@ -530,12 +539,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // Out of view: every leaf the tree holds (as it would be drawn) and its
     // stand-in STAND_IN_LEVEL_STEP LODs up, meshed after the view's work
     // and kept, so a turn of the camera finds them meshed.
-    let age = frame.saturating_sub(*prefetched_at);
-    // Not while the view has work of its own: a cold start or a fast
-    // flight spends the frame thread and the workers on what is seen.
-    let refresh = prefetch
-        && !*view_busy
-        && (*prefetched_at == 0 || (*tree_changed && age >= PREFETCH_REFRESH_FRAMES) || age >= PREFETCH_MAX_AGE_FRAMES);
+    let refresh = prefetch && refresh_due(*view_busy, *prefetched_at, *tree_changed, frame);
     if refresh {
         *prefetched_at = frame;
         *tree_changed = false;
@@ -731,15 +735,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // hold prefetching up.)
     *view_busy = jobs.iter().any(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
     if !*view_busy {
-        while prefetch_jobs.last().is_some_and(|job| holds(job.key)) {
-            prefetch_jobs.pop();
-        }
-        if room_to_prefetch {
-            // Never more than the queue keeps (below): making 20,000 jobs
-            // to keep 1,024 is the cost its cap removes.
-            let next = prefetch_jobs.iter().rev().filter(|job| !holds(job.key));
-            jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
-        }
+        queue_prefetch(&mut jobs, prefetch_jobs, holds, room_to_prefetch);
     }
     // A chunk that failed waits for its retry; one no longer asked for is
     // forgotten.
@@ -750,26 +746,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
     }
     keep_most_urgent(&mut jobs);
-    // What the frame thread frees after applying the plan (listing and
-    // sorting every column held was the step's slowest part in a frame
-    // past the budget).
-    let (mut aged, mut least_recent) = (Vec::new(), None);
-    let aging = frame.is_multiple_of(AGING_PERIOD);
-    if aging || near_budget {
-        let in_use = slots_in_use(columns, &used);
-        let candidates = least_recently_used(columns, keep, max_lod, |slot, _| in_use[slot]);
-        if aging {
-            aged.extend(
-                candidates
-                    .iter()
-                    .filter(|&&(kept, last_used, _, _)| !kept && frame.saturating_sub(last_used) > free_after_frames)
-                    .map(|&(_, _, column, slot)| (slot, column)),
-            );
-        }
-        if near_budget {
-            least_recent = Some(candidates.into_iter().map(|(_, _, column, slot)| (slot, column)).collect());
-        }
-    }
+    let (aged, least_recent) = freeing(input, keep, &used);
     Plan {
         draw,
         slots,
@@ -784,6 +761,155 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         least_recent,
         millis: start.elapsed().as_secs_f64() * 1e3,
     }
+}
+
+/// Whether a plan made in `frame` makes the prefetch set again, for a
+/// selection whose last plan left `view_busy`, `prefetched_at` and
+/// `tree_changed` (with prefetching on).
+fn refresh_due(view_busy: bool, prefetched_at: u64, tree_changed: bool, frame: u64) -> bool {
+    let age = frame.saturating_sub(prefetched_at);
+    // Not while the view has work of its own: a cold start or a fast
+    // flight spends the frame thread and the workers on what is seen.
+    !view_busy
+        && (prefetched_at == 0 || (tree_changed && age >= PREFETCH_REFRESH_FRAMES) || age >= PREFETCH_MAX_AGE_FRAMES)
+}
+
+/// Adds to `jobs` the next prefetch jobs of `prefetch_jobs` (the most
+/// urgent last) not held yet, dropping those at its end already held.
+fn queue_prefetch(
+    jobs: &mut Vec<Job>,
+    prefetch_jobs: &mut Vec<Job>,
+    holds: impl Fn(ChunkKey) -> bool,
+    room_to_prefetch: bool,
+) {
+    while prefetch_jobs.last().is_some_and(|job| holds(job.key)) {
+        prefetch_jobs.pop();
+    }
+    if room_to_prefetch {
+        // Never more than the queue keeps: making 20,000 jobs to keep
+        // 1,024 is the cost its cap removes.
+        let next = prefetch_jobs.iter().rev().filter(|job| !holds(job.key));
+        jobs.extend(next.take(MAX_QUEUED_JOBS).copied());
+    }
+}
+
+/// What the frame thread frees after applying a plan that uses `used`
+/// (listing and sorting every column held was the step's slowest part in a
+/// frame past the budget): every [`AGING_PERIOD`] frames the columns out of
+/// use too long and not in `keep`; near the budget, every column not used,
+/// in the order to free them.
+#[allow(clippy::type_complexity)]
+fn freeing<S: VoxelSource + ?Sized, H>(
+    input: &SelectInput<'_, S, H>,
+    keep: &HashSet<ChunkColumn>,
+    used: &[(usize, ChunkColumn)],
+) -> (Vec<(usize, ChunkColumn)>, Option<Vec<(usize, ChunkColumn)>>) {
+    let SelectSettings { frame, free_after_frames, near_budget, .. } = input.settings;
+    let columns = input.columns;
+    let (mut aged, mut least_recent) = (Vec::new(), None);
+    let aging = frame.is_multiple_of(AGING_PERIOD);
+    if aging || near_budget {
+        let in_use = slots_in_use(columns, used);
+        let max_lod = input.voxels.layout().max_lod();
+        let candidates = least_recently_used(columns, keep, max_lod, |slot, _| in_use[slot]);
+        if aging {
+            aged.extend(
+                candidates
+                    .iter()
+                    .filter(|&&(kept, last_used, _, _)| !kept && frame.saturating_sub(last_used) > free_after_frames)
+                    .map(|&(_, _, column, slot)| (slot, column)),
+            );
+        }
+        if near_budget {
+            least_recent = Some(candidates.into_iter().map(|(_, _, column, slot)| (slot, column)).collect());
+        }
+    }
+    (aged, least_recent)
+}
+
+/// Whether `plan`, made from `input` and leaving `selection` as it is now,
+/// planned a settled view: nothing of the view to mesh, stand in for,
+/// sample or forget, and nothing asked of the next plan but prefetching.
+/// Until the camera, the tree, the settings (the frame aside) or one of
+/// the cached columns it read change, the view's part of every later plan
+/// is the same (the columns it read: every visible leaf's and every drawn
+/// one's), and only the prefetch jobs and what to free are made anew
+/// ([`plan_prefetch`]).
+pub(crate) fn settled_view<S: VoxelSource + ?Sized, H>(
+    input: &SelectInput<'_, S, H>,
+    selection: &Selection,
+    plan: &Plan<H>,
+) -> bool {
+    input.asks_nothing(selection)
+        && !selection.view_busy
+        && plan.new_columns.is_empty()
+        && plan.dropped_stale.is_empty()
+        && plan.forget_failed.is_empty()
+        && plan.draw.tops_awaited == 0
+        && plan.draw.stand_ins == 0
+        && plan.draw.holes == 0
+        && plan.jobs.iter().all(|job| job.tier == Tier::Prefetch)
+}
+
+/// Whether a plan from `input` and `selection` may be [`plan_prefetch`]'s:
+/// nothing asked of it but prefetching, and no prefetch set to make again.
+pub(crate) fn asks_prefetching_only<S: ?Sized, H>(input: &SelectInput<'_, S, H>, selection: &Selection) -> bool {
+    input.asks_nothing(selection)
+        && !selection.view_busy
+        && !(input.settings.prefetch
+            && refresh_due(selection.view_busy, selection.prefetched_at, selection.tree_changed, input.settings.frame))
+}
+
+/// The plan [`plan`] makes from `input` and `selection` where the view's
+/// part is that of `view`, a [`settled_view`]'s plan whose columns read
+/// are unchanged since ([`asks_prefetching_only`] holds): `view` again,
+/// with the next prefetch jobs and what to free. Through a 12° lens 500 m
+/// over the Earth a full plan took 33-47 ms of the LOD thread, every
+/// frame for the ten seconds of prefetching after the view settled (each
+/// mesh that came changed the cached columns).
+pub(crate) fn plan_prefetch<S: VoxelSource + ?Sized, H>(
+    input: &SelectInput<'_, S, H>,
+    selection: &mut Selection,
+    view: &Plan<H>,
+) -> Plan<H> {
+    let start = Instant::now();
+    debug_assert!(asks_prefetching_only(input, selection));
+    let columns = input.columns;
+    let holds = |key: ChunkKey| columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer));
+    let mut plan = view.repeat();
+    queue_prefetch(&mut plan.jobs, &mut selection.prefetch_jobs, holds, input.settings.room_to_prefetch);
+    keep_most_urgent(&mut plan.jobs);
+    (plan.aged, plan.least_recent) = freeing(input, &selection.keep, &plan.used);
+    #[cfg(test)]
+    if selection.prefetch_plans_queue_nothing {
+        plan.jobs.clear();
+    }
+    plan.millis = start.elapsed().as_secs_f64() * 1e3;
+    plan
+}
+
+/// Whether two plans are the same (their timing aside): what a test asks
+/// of [`plan_prefetch`] against [`plan`].
+#[cfg(test)]
+pub(crate) fn same_plan<H>(a: &Plan<H>, b: &Plan<H>) -> bool {
+    let draws = |d: &DrawList| {
+        (
+            d.columns.clone(),
+            (d.holes, d.stand_ins, d.max_stand_in_levels, d.behind_horizon, d.tops_awaited, d.under_sea),
+            (d.min_surface_radius.to_bits(), d.occluder_radius.to_bits(), d.unsettled, d.max_lod_diff),
+        )
+    };
+    draws(&a.draw) == draws(&b.draw)
+        && a.slots == b.slots
+        && a.arounds == b.arounds
+        && a.used == b.used
+        && a.new_columns.len() == b.new_columns.len()
+        && a.dropped_stale == b.dropped_stale
+        && a.jobs == b.jobs
+        && a.forget_failed == b.forget_failed
+        && a.unseen == b.unseen
+        && a.aged == b.aged
+        && a.least_recent == b.least_recent
 }
 
 impl<H> Plan<H> {

@@ -399,11 +399,26 @@ pub(crate) struct ColumnStore<H> {
     /// count, the same columns (a column's last use aside,
     /// [`MeshCache::mark_used`]).
     changes: u64,
+    /// The columns changed (added, removed, their meshes or layers), in
+    /// order, after the first `touched_before` ([`ColumnStore::touched_since`]):
+    /// what a plan that read some columns only asks of later changes.
+    touched: Vec<ChunkColumn>,
+    touched_before: usize,
 }
+
+/// Changes [`ColumnStore`] logs before it forgets them (a plan older than
+/// that is made again in full).
+const MAX_TOUCHED: usize = 1 << 16;
 
 impl<H> Default for ColumnStore<H> {
     fn default() -> Self {
-        Self { slots: HashMap::default(), columns: slab::Slab::new(), changes: 0 }
+        Self {
+            slots: HashMap::default(),
+            columns: slab::Slab::new(),
+            changes: 0,
+            touched: Vec::new(),
+            touched_before: 0,
+        }
     }
 }
 
@@ -414,11 +429,35 @@ impl<H> ColumnStore<H> {
         self.changes
     }
 
+    /// How many column changes were logged so far: where
+    /// [`ColumnStore::touched_since`] starts for changes after now.
+    pub(crate) fn touch_count(&self) -> usize {
+        self.touched_before + self.touched.len()
+    }
+
+    /// The columns changed since [`ColumnStore::touch_count`] was `count`
+    /// (one may come more than once), or `None` where the log no longer
+    /// reaches back that far.
+    pub(crate) fn touched_since(&self, count: usize) -> Option<&[ChunkColumn]> {
+        self.touched.get(count.checked_sub(self.touched_before)?..)
+    }
+
+    /// Logs a change of `column`.
+    fn touch(&mut self, column: ChunkColumn) {
+        if self.touched.len() >= MAX_TOUCHED {
+            self.touched_before += self.touched.len();
+            self.touched.clear();
+        }
+        self.touched.push(column);
+    }
+
     pub(crate) fn get(&self, column: &ChunkColumn) -> Option<&CachedColumn<H>> {
         self.slots.get(column).map(|&slot| &self.columns[slot])
     }
 
+    /// The column's meshes, to change (the change is logged).
     fn get_mut(&mut self, column: &ChunkColumn) -> Option<&mut CachedColumn<H>> {
+        self.touch(*column);
         self.slot_mut(column).map(|(_, cached)| cached)
     }
 
@@ -450,11 +489,13 @@ impl<H> ColumnStore<H> {
         column: ChunkColumn,
         new: impl FnOnce() -> CachedColumn<H>,
     ) -> (usize, &mut CachedColumn<H>) {
+        self.touch(column);
         let slot = *self.slots.entry(column).or_insert_with(|| self.columns.insert(new()));
         (slot, &mut self.columns[slot])
     }
 
     fn remove(&mut self, column: &ChunkColumn) -> Option<CachedColumn<H>> {
+        self.touch(*column);
         self.slots.remove(column).map(|slot| self.columns.remove(slot))
     }
 
@@ -1427,6 +1468,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let start = Instant::now();
         let mut made_ahead = self.take_outcome();
         self.times.lod_wait_ms = start.elapsed().as_secs_f64() * 1e3;
+        #[cfg(test)]
+        if let Some(differs) = made_ahead.as_ref().and_then(|outcome| outcome.prefetch_mismatch) {
+            panic!("a prefetch-only plan differs from the full plan in {differs}");
+        }
         let view = self.voxels.layer_view(camera.position);
         if view != self.view {
             self.view = view;
@@ -1557,7 +1602,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// The selection's state, taken back from the LOD thread if it is
     /// there (a new one if the thread is gone with it).
-    fn selection_mut(&mut self) -> &mut Selection {
+    pub(crate) fn selection_mut(&mut self) -> &mut Selection {
         if self.selection.is_none() {
             self.reclaim();
         }
@@ -1876,6 +1921,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     #[must_use]
     pub fn lod_plans_repeated(&self) -> u64 {
         self.lod_thread.as_ref().map_or(0, LodThread::repeats)
+    }
+
+    /// Plans the LOD thread made for a settled view's frames that only
+    /// prefetching changed (each mesh that comes for it changes the cached
+    /// columns): the view's part of the plan before again, with the next
+    /// prefetch jobs, instead of a plan made in full.
+    #[must_use]
+    pub fn lod_plans_for_prefetching(&self) -> u64 {
+        self.lod_thread.as_ref().map_or(0, LodThread::prefetch_plans)
     }
 
     /// Draws `voxels` from now on: the same planet after edits whose dirty

@@ -1167,6 +1167,54 @@ mod streaming {
     }
 
     #[test]
+    fn a_settled_views_prefetching_is_planned_without_the_view_and_as_the_full_plan_would() {
+        // Once a still view is settled, the meshes that come for
+        // prefetching change the cached columns every frame, but none the
+        // view's part of the plan reads: the LOD thread plans those frames
+        // from the view's part of the plan before (`SettledView`), and
+        // makes the full plan beside each to check it (tests only: the
+        // frame thread panics where they differ). The draw list stays the
+        // same every frame. Broken to queue no job, the check fails.
+        let run = |queue_nothing: bool| {
+            let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
+            let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+            let up = DVec3::new(0.3, 0.8, 0.5).normalize();
+            let eye = world.source().base().surface_point(up) + up * 30.0;
+            let forward = up.any_orthonormal_vector();
+            let camera = Camera { position: eye, forward, up, aspect: 1.6 };
+            let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
+            let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+            streamer.selection_mut().prefetch_plans_queue_nothing = queue_nothing;
+            // The view settled, its prefetching begun.
+            for done in 0.. {
+                streamer.update(camera, &mut { upload });
+                if streamer.settled() && streamer.lod_plans_for_prefetching() > 0 {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(1));
+                assert!(done < 20_000, "did not settle or begin prefetching");
+            }
+            let (drawn, meshed) = (streamer.draw_list().columns.clone(), streamer.figures().times.chunks_meshed);
+            let (prefetch_plans, frames) = (streamer.lod_plans_for_prefetching(), streamer.lod_thread_frames());
+            for frame in 0..200 {
+                streamer.update(camera, &mut { upload });
+                assert!(streamer.draw_list().columns == drawn, "frame {frame} of the hold draws something else");
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+            let prefetching = streamer.lod_plans_for_prefetching() - prefetch_plans;
+            let planned = streamer.lod_thread_frames().0 - frames.0;
+            let prefetched = streamer.figures().times.chunks_meshed - meshed;
+            println!("{prefetching} of {planned} plans taken prefetch-only while {prefetched} chunks were prefetched");
+            (prefetching, prefetched)
+        };
+        let (prefetching, prefetched) = run(false);
+        assert!(prefetched >= 50, "only {prefetched} chunks prefetched in 200 frames");
+        assert!(prefetching >= 20, "{prefetching} prefetch-only plans while {prefetched} chunks were prefetched");
+        let broken = std::panic::catch_unwind(|| run(true));
+        assert!(broken.is_err(), "prefetch-only plans queueing nothing went unnoticed");
+    }
+
+    #[test]
     fn a_still_settled_view_is_planned_anew_only_where_time_can_change_it() {
         // A still camera over a settled view gets the LOD thread's plan
         // before again instead of a new one (`Repeatable`), but where a
