@@ -841,7 +841,6 @@ pub(crate) fn settled_view<S: VoxelSource + ?Sized, H>(
     plan: &Plan<H>,
 ) -> bool {
     input.asks_nothing(selection)
-        && !selection.view_busy
         && plan.new_columns.is_empty()
         && plan.dropped_stale.is_empty()
         && plan.forget_failed.is_empty()
@@ -854,8 +853,8 @@ pub(crate) fn settled_view<S: VoxelSource + ?Sized, H>(
 /// Whether a plan from `input` and `selection` may be [`plan_prefetch`]'s:
 /// nothing asked of it but prefetching, and no prefetch set to make again.
 pub(crate) fn asks_prefetching_only<S: ?Sized, H>(input: &SelectInput<'_, S, H>, selection: &Selection) -> bool {
+    // (Asking nothing, the view is not busy.)
     input.asks_nothing(selection)
-        && !selection.view_busy
         && !(input.settings.prefetch
             && refresh_due(selection.view_busy, selection.prefetched_at, selection.tree_changed, input.settings.frame))
 }
