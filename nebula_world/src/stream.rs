@@ -455,6 +455,11 @@ impl<H> ColumnStore<H> {
         self.slots.get(column).map(|&slot| &self.columns[slot])
     }
 
+    /// Whether the mesh of chunk `key` is held.
+    pub(crate) fn holds(&self, key: ChunkKey) -> bool {
+        self.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer))
+    }
+
     /// The column's meshes, to change (the change is logged).
     fn get_mut(&mut self, column: &ChunkColumn) -> Option<&mut CachedColumn<H>> {
         self.touch(*column);
@@ -601,7 +606,7 @@ impl<H: MeshHandle> MeshCache<H> {
     /// Whether the mesh of chunk `key` is held.
     #[must_use]
     pub fn holds(&self, key: ChunkKey) -> bool {
-        self.columns.get(&key.column()).is_some_and(|c| c.chunks.contains(key.layer))
+        self.columns.holds(key)
     }
 
     /// Near the budget, given what is held (chunks, bytes): past 15/16 of
@@ -1984,8 +1989,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if running.contains(key) {
                 self.cache.required.insert(*key, self.generation);
             }
-            if drawn.contains(&column) && self.cache.columns.get(&column).is_some_and(|c| c.chunks.contains(key.layer))
-            {
+            if drawn.contains(&column) && self.cache.holds(*key) {
                 self.cache.stale.insert(*key, self.generation);
             }
         }
