@@ -94,6 +94,11 @@ struct Args {
     /// saved before octave grids [default: 16].
     #[arg(long = "octave-grid", value_name = "RATIO")]
     octave_grid: Option<f64>,
+    /// How far, metres, reading one octave from a grid coarser than 16
+    /// columns may move the terrain, 0 for none coarser: the terrain of
+    /// worlds saved before coarse grids [default: 0.01 voxels].
+    #[arg(long = "octave-grid-error", value_name = "M")]
+    octave_grid_error: Option<f64>,
     /// The planet seed used: --seed or the preset's.
     #[arg(skip)]
     seed: u32,
@@ -392,6 +397,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     if let Some(octave_grid) = args.octave_grid {
         settings.octave_grid = octave_grid;
     }
+    if let Some(octave_grid_error) = args.octave_grid_error {
+        settings.octave_grid_error = octave_grid_error;
+    }
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
     })?;
@@ -492,6 +500,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         "seed": s.seed,
         "cave_size": s.cave_size,
         "octave_grid": s.octave_grid,
+        "octave_grid_error": s.octave_grid_error,
         "terrain_version": nebula_voxel::ProceduralPlanet::TERRAIN_VERSION,
         "world": world.store().map(|store| store.path().display().to_string()),
         "unsaved_chunks": world.unsaved_chunks(),

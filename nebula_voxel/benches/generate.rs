@@ -136,6 +136,10 @@ fn generate(c: &mut Criterion) {
     // terrain of planets saved before octave grids).
     let exact =
         ProceduralPlanet::new(PlanetSettings { octave_grid: 0.0, ..PlanetSettings::earth(1) }).expect("valid planet");
+    // And with no grid coarser than the ratio's 16 columns (the terrain of
+    // planets saved before coarse grids).
+    let fine_grids = ProceduralPlanet::new(PlanetSettings { octave_grid_error: 0.0, ..PlanetSettings::earth(1) })
+        .expect("valid planet");
     let mut group = c.benchmark_group("voxel_chunk");
     group.throughput(Throughput::Elements(32 * 32 * 32));
     let cases = [
@@ -147,6 +151,10 @@ fn generate(c: &mut Criterion) {
         ("fill_mountains_middle_lod", &planet, 0, middle_surface_chunk(&planet, mountain_chunk(&planet))),
         ("fill_flight_start_seabed_lod", &planet, 0, flight_start_chunk(&planet)),
         ("fill_lod_no_grids", &exact, 0, surface_chunk(&exact, CubeFace::PosZ, 0, 5, 7)),
+        ("fill_lod_no_coarse_grids", &fine_grids, 0, surface_chunk(&fine_grids, CubeFace::PosZ, 0, 5, 7)),
+        ("fill_lod_no_coarse_grids", &fine_grids, 5, surface_chunk(&fine_grids, CubeFace::PosZ, 5, 5, 7)),
+        ("fill_lod_no_coarse_grids", &fine_grids, 8, surface_chunk(&fine_grids, CubeFace::PosZ, 8, 5, 7)),
+        ("fill_mountains_lod_no_coarse_grids", &fine_grids, 0, mountain_chunk(&fine_grids)),
         ("fill_mountains_lod_no_grids", &exact, 0, mountain_chunk(&exact)),
     ];
     for (name, planet, lod, key) in cases {

@@ -33,7 +33,10 @@
 //!   (2.3× faster where samples are far apart; see `perlin.rs`). Octaves
 //!   many voxels long are read from grids on the face lattice instead of
 //!   at every column (`octave_grid.rs`, `PlanetSettings::octave_grid`; 0
-//!   for the exact noise of planets saved before), the same at every LOD.
+//!   for the exact noise of planets saved before), the same at every LOD;
+//!   the continents' longest from grids hundreds of columns apart, as
+//!   far as an error budget allows (`PlanetSettings::octave_grid_error`),
+//!   so coarse chunks do not sum them at every column.
 //!   Heights are computed once per chunk column and shared by its radial
 //!   layers.
 //!

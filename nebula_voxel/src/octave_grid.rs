@@ -13,8 +13,18 @@
 //!
 //! Octave `k` of a sum, of wavelength `λ_k` lattice cells, belongs to the
 //! grid of spacing `S_k`: the largest power of two at most `λ_k / ratio`
-//! (the planet's `octave_grid`), at most [`MAX_SPACING`]; octaves with
-//! `S_k = 1` are evaluated at the column itself. A grid of spacing `S` has
+//! (the planet's `octave_grid`), at most [`RATIO_SPACING_CAP`]; octaves
+//! with `S_k = 1` are evaluated at the column itself. An octave the ratio
+//! puts on the capped grid goes on to coarser ones (still at most
+//! `λ_k / ratio`) while the bound of how far interpolating it moves H,
+//! `(π²/2)·(S/λ_k)²·A_k` (**How far from exact noise**; `A_k` the most
+//! the octave can move H, [`CoarseGrids`]), stays within the planet's
+//! `octave_grid_error` metres: the continents' long octaves, which a
+//! coarse voxel column otherwise sums in full. (An error budget, not a
+//! ratio: at a ratio of 16 a grid of 64 moved the terrain by up to 3.9
+//! voxels, the ridges' octaves being tall for their wavelengths, while the
+//! continents' first takes a grid of 2,048 for 1 cm.) Spacings never grow
+//! from one octave to the next. A grid of spacing `S` has
 //! its nodes at the LOD-0 columns whose indices are `−1 mod S` on both
 //! axes (column `u` has its centre at lattice coordinate `u + ½`).
 //!
@@ -30,16 +40,19 @@
 //!   own state bit for bit: its octaves of those grids are evaluated there
 //!   directly, as a LOD-0 chunk's grids evaluate them at that node, and
 //!   the coarser grids' nodes are the same whichever chunk asks. So a LOD
-//!   `L` chunk reads grids only where their spacing exceeds `2^L`, and
-//!   from LOD 4 (spacing 16) on, every octave is evaluated directly: the
-//!   heights there are those of the terrain without grids, bit for bit.
+//!   `L` chunk reads grids only where their spacing exceeds `2^L`: without
+//!   coarse grids none from LOD 4 (spacing 16) on, every octave evaluated
+//!   directly; with them, the continents' long octaves to LOD 10 or so
+//!   (a grid of spacing `2^(L+1)` has 18 × 18 nodes over such a chunk).
 //! - **One owner per column.** A column is a function of its own face's
 //!   column indices; a chunk's padding beyond a face edge is computed on
 //!   the face that owns it, as the direction rule already had it.
 //! - **How far from exact noise.** Bilinear interpolation of a wave of
 //!   wavelength `λ` from nodes `S` apart errs by at most `(π²/2)·(S/λ)²`
 //!   of its amplitude: 1.9 % at ratio 16, for the finest octave of each
-//!   grid, a quarter of that for the next.
+//!   grid, a quarter of that for the next. (A bound for a sine; Perlin
+//!   octaves bend less, the ridges' creases more: the planet's tests
+//!   measure how far the terrain moves.)
 //! - **Bounds.** A state interpolated at a point blends node states from
 //!   the point's own cell of each grid (the cells are nested: the nodes of
 //!   a finer grid's cell lie in the coarser grid's cell), so octave `k`
@@ -52,12 +65,29 @@ use nebula_math::{CubeFace, Cubesphere};
 
 use crate::perlin::{Fractal, OctaveState};
 
-/// The coarsest grid's spacing, LOD-0 columns. Larger spacings would
-/// serve few more octaves (the coarsest grid already takes every octave of
-/// 256 cells and more at ratio 16), and the surface bounds' five samples
-/// sit on its nodes (`ProceduralPlanet::column_relief`: every 16th
-/// column), so they cost no interpolation.
-pub(crate) const MAX_SPACING: i64 = 16;
+/// The coarsest grid the ratio alone gives, LOD-0 columns (it takes every
+/// octave of 256 cells and more at ratio 16): a coarser one moves an
+/// octave by more than the ratio promises, so only the error budget
+/// ([`CoarseGrids`]) sends octaves there.
+pub(crate) const RATIO_SPACING_CAP: i64 = 16;
+
+/// How much coarser each grid past [`RATIO_SPACING_CAP`] is than the one
+/// before: a grid costs a pass of its own at every chunk that reads it
+/// (its nodes' directions, its octaves there, its states interpolated),
+/// so fewer, coarser steps.
+const COARSE_STEP: i64 = 4;
+
+/// How far octaves may go past [`RATIO_SPACING_CAP`]: the error budget
+/// and what each octave can move H by.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CoarseGrids {
+    /// The most H changes per unit of the sum, metres (its steepest rate
+    /// anywhere: an octave's amplitude in the sum times this is its `A_k`).
+    pub(crate) metres_per_unit: f64,
+    /// The most interpolating one octave may move H, metres, by the bound
+    /// (`(π²/2)·(S/λ)²·A_k`); 0: no grid coarser than the cap.
+    pub(crate) error: f64,
+}
 
 /// Which octaves of one noise sum come from which grid.
 #[derive(Clone, Debug)]
@@ -75,13 +105,29 @@ impl OctaveLevels {
     /// The grids of `fractal`'s octaves, whose first octave spans
     /// `cells_per_unit` lattice cells per unit of noise space, at `ratio`
     /// wavelengths per spacing (no grids at all for a ratio of 0: the
-    /// terrain of planets from before grids).
-    pub(crate) fn new(fractal: &Fractal, cells_per_unit: f64, ratio: f64) -> Self {
+    /// terrain of planets from before grids), coarser than
+    /// [`RATIO_SPACING_CAP`] as far as `coarse` allows (module docs).
+    pub(crate) fn new(fractal: &Fractal, cells_per_unit: f64, ratio: f64, coarse: CoarseGrids) -> Self {
         let mut levels: Vec<(i64, usize)> = Vec::new();
         let mut reach = Vec::with_capacity(fractal.octaves());
+        let mut coarsest = i64::MAX;
         for k in 0..fractal.octaves() {
             let wavelength = cells_per_unit / fractal.lacunarity().powi(k as i32);
-            let spacing = if ratio > 0.0 { power_of_two_at_most(wavelength / ratio).min(MAX_SPACING) } else { 1 };
+            let by_ratio = if ratio > 0.0 { power_of_two_at_most(wavelength / ratio) } else { 1 };
+            let mut spacing = by_ratio.min(RATIO_SPACING_CAP);
+            let amplitude = coarse.metres_per_unit * fractal.octave_amplitude(k);
+            let moves = |spacing: i64| {
+                let relative = spacing as f64 / wavelength;
+                std::f64::consts::PI * std::f64::consts::PI / 2.0 * relative * relative * amplitude
+            };
+            while spacing >= RATIO_SPACING_CAP
+                && COARSE_STEP * spacing <= by_ratio
+                && moves(COARSE_STEP * spacing) <= coarse.error
+            {
+                spacing *= COARSE_STEP;
+            }
+            spacing = spacing.min(coarsest);
+            coarsest = spacing;
             reach.push(if spacing > 1 { std::f64::consts::SQRT_2 * spacing as f64 } else { 0.0 });
             if spacing == 1 {
                 continue;

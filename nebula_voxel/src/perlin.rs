@@ -579,6 +579,19 @@ impl Fractal {
         self.lacunarity
     }
 
+    /// The most octave `k` can add to the finished sum: an fBm octave's
+    /// weight (its noise is within ±1), or a ridged one's signal, at most
+    /// the weight the octaves before left (each at most half the last:
+    /// [`Self::bounds`]), scaled as the sum is.
+    #[must_use]
+    pub fn octave_amplitude(&self, k: usize) -> f64 {
+        let weight = match self.kind {
+            FractalKind::Fbm => self.first_attenuation() * self.persistence.powi(k as i32),
+            FractalKind::Ridged => RIDGED_ATTENUATION.powi(-(k as i32)),
+        };
+        weight * self.scale_factor
+    }
+
     /// A sum over `points` with no octave in yet: [`Self::step`] adds them
     /// one at a time, for the points still wanted, and [`Self::bounds`]
     /// says how far each sum can still go.

@@ -105,7 +105,7 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::caves::{Caves, ColumnCaves};
-use crate::octave_grid::{GriddedSum, OctaveLevels, grid_states};
+use crate::octave_grid::{CoarseGrids, GriddedSum, OctaveLevels, grid_states};
 use crate::perlin::{Fractal, OctaveState};
 use nebula_math::{CubeFace, Cubesphere, SphereMap};
 
@@ -147,6 +147,13 @@ pub struct PlanetSettings {
     /// 1.6× faster); 0 for every octave at every column, the terrain of
     /// the planets saved before grids.
     pub octave_grid: f64,
+    /// How far, metres, reading one octave from a grid coarser than the
+    /// ratio's 16 columns may move H by the interpolation bound
+    /// (`octave_grid.rs`): the continents' long octaves then come from
+    /// grids at coarse LODs too, which otherwise sum them at every column.
+    /// `0.01 · voxel_size` for new planets; 0 for no grid coarser than 16
+    /// columns, the terrain of the planets saved before coarse grids.
+    pub octave_grid_error: f64,
 }
 
 impl PlanetSettings {
@@ -172,6 +179,7 @@ impl PlanetSettings {
             // smaller ones.
             cave_size: (5.0 * voxel_size).min(radius * 0.06 / 30.0),
             octave_grid: 16.0,
+            octave_grid_error: 0.01 * voxel_size,
         }
     }
 
@@ -195,7 +203,8 @@ impl PlanetSettings {
     /// planet, so adding a setting does not lock old saves out. A new
     /// field goes here with the value that reproduces the terrain without
     /// it.
-    pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] = &[("cave_size", "0.0"), ("octave_grid", "0.0")];
+    pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] =
+        &[("cave_size", "0.0"), ("octave_grid", "0.0"), ("octave_grid_error", "0.0")];
 
     /// The settings as canonical `(name, value)` pairs, sorted by name, for
     /// a saved world's identity: independent of field order and of `Debug`
@@ -215,6 +224,7 @@ impl PlanetSettings {
             seed,
             cave_size,
             octave_grid,
+            octave_grid_error,
         } = self;
         let mut pairs = vec![
             ("amplitude", format!("{amplitude:?}")),
@@ -224,6 +234,7 @@ impl PlanetSettings {
             ("feature_size", format!("{feature_size:?}")),
             ("mountain_size", format!("{mountain_size:?}")),
             ("octave_grid", format!("{octave_grid:?}")),
+            ("octave_grid_error", format!("{octave_grid_error:?}")),
             ("radius", format!("{radius:?}")),
             ("seed", seed.to_string()),
             ("voxel_size", format!("{voxel_size:?}")),
@@ -561,6 +572,16 @@ impl ProceduralPlanet {
                 value: settings.octave_grid,
             });
         }
+        if !settings.octave_grid_error.is_finite() {
+            return Err(VoxelError::NonFinite { name: "octave grid error", value: settings.octave_grid_error });
+        }
+        if settings.octave_grid_error < 0.0 {
+            return Err(VoxelError::OutOfRange {
+                name: "octave grid error",
+                requirement: "≥ 0",
+                value: settings.octave_grid_error,
+            });
+        }
         if !(0.0..radius / 4.0).contains(&settings.amplitude) {
             return Err(VoxelError::OutOfRange {
                 name: "amplitude",
@@ -599,15 +620,21 @@ impl ProceduralPlanet {
         // (the equi-angular map's cells are widest at the middle of a face
         // edge: (π/2)/N); the bounds' reach takes 1 % more for rounding.
         let cell_angle = std::f64::consts::FRAC_PI_2 / f64::from(resolution);
-        let gridded = |fractal: &Fractal, scale: f64| {
+        let gridded = |fractal: &Fractal, scale: f64, sum: usize| {
+            // How fast H changes with this sum, at most: a unit step of it
+            // alone, anywhere.
+            let mut unit = [0.0; 3];
+            unit[sum] = 1.0;
+            let metres_per_unit = height_step(&settings, SumRanges::EVERYWHERE, unit);
+            let coarse = CoarseGrids { metres_per_unit, error: settings.octave_grid_error };
             // A unit of noise space is 1/scale radians.
-            let levels = OctaveLevels::new(fractal, 1.0 / (scale * cell_angle), settings.octave_grid);
+            let levels = OctaveLevels::new(fractal, 1.0 / (scale * cell_angle), settings.octave_grid, coarse);
             let widen = levels.reach().iter().map(|cells| cells * cell_angle * 1.01 * scale).collect();
             (levels, widen)
         };
-        let (continents_levels, continents_widen) = gridded(&continents, noise_scale);
-        let (ridges_levels, ridges_widen) = gridded(&ridges, ridge_scale);
-        let (hills_levels, hills_widen) = gridded(&hills, detail_scale);
+        let (continents_levels, continents_widen) = gridded(&continents, noise_scale, 0);
+        let (ridges_levels, ridges_widen) = gridded(&ridges, ridge_scale, 1);
+        let (hills_levels, hills_widen) = gridded(&hills, detail_scale, 2);
         let mut planet = Self {
             caves: Caves::new(0.0, radius, layer_height, max_lod, settings.seed, 0.0)?,
             detail_scale,
@@ -685,6 +712,11 @@ impl ProceduralPlanet {
         self.combine(continents, ridges, hills)
     }
 
+    /// [`grid_states`] of the three sums at `points` of `face`.
+    fn grid_states(&self, face: CubeFace, points: &[[f64; 2]], spacing: i64) -> [(usize, Vec<OctaveState>); 3] {
+        grid_states(self.layout.sphere(), face, self.gridded(), points, spacing)
+    }
+
     /// The three sums as [`grid_states`] reads them.
     fn gridded(&self) -> [GriddedSum<'_>; 3] {
         let [continents, ridges, hills] = &self.levels;
@@ -718,7 +750,7 @@ impl ProceduralPlanet {
                 .map(|d| self.gridded().map(|sum| sum.fractal.get((*d * sum.scale).to_array())))
                 .collect();
         }
-        let resumed = grid_states(self.layout.sphere(), face, self.gridded(), points, spacing);
+        let resumed = self.grid_states(face, points, spacing);
         let mut sums = vec![[0.0; 3]; points.len()];
         let all: Vec<usize> = (0..points.len()).collect();
         for (n, (sum, (start, states))) in self.gridded().iter().zip(&resumed).enumerate() {
@@ -805,22 +837,7 @@ impl ProceduralPlanet {
     /// no mountain can be (the lowlands, most of a planet) the bound is
     /// that of the continents and hills alone.
     fn slope_within(&self, ranges: SumRanges) -> f64 {
-        let [continents_step, ridges_step, hills_step] = self.sum_steps;
-        let (continents_low, continents_high) = ranges.continents;
-        let ridges = unit_ridges(ranges.ridges.1);
-        let hills = unit_hills(ranges.hills.1);
-        let mask = mountain_mask(continents_high);
-        // smoothstep rises by at most 1.5 over its width, and not at all
-        // below it; the ridges in [0, 1] step by half the sum's.
-        let mask_step = if mask > 0.0 { 1.5 / MOUNTAIN_INLAND * continents_step } else { 0.0 };
-        let ridges_cubed_step = 3.0 * ridges * ridges * 0.5 * ridges_step;
-        let mountains = ridges.powi(MOUNTAIN_SHARPNESS) * mask;
-        let mountains_step = ridges_cubed_step * mask + ridges.powi(MOUNTAIN_SHARPNESS) * mask_step;
-        let slope = if continents_low < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
-        let landforms = self.settings.amplitude * (slope * continents_step + MOUNTAIN_SHARE * mountains_step);
-        let detail = self.settings.detail_amplitude
-            * (0.5 * hills_step * (1.0 + MOUNTAIN_ROUGHNESS * mountains) + MOUNTAIN_ROUGHNESS * hills * mountains_step);
-        (landforms + detail) / self.layer_height
+        height_step(&self.settings, ranges, self.sum_steps) / self.layer_height
     }
 
     /// The voxel columns in `directions` for voxels `span` layers tall:
@@ -1140,7 +1157,7 @@ impl ProceduralPlanet {
         // A lattice point's column is the one below and left of it.
         let columns: Vec<[f64; 2]> = summed.iter().map(|&(i, j)| [(i - 1) as f64, (j - 1) as f64]).collect();
         debug_assert!(summed.iter().all(|&(i, j)| i % spacing == 0 && j % spacing == 0));
-        let [continents, ridges, hills] = grid_states(sphere, face, self.gridded(), &columns, spacing);
+        let [continents, ridges, hills] = self.grid_states(face, &columns, spacing);
         let mut batches = [
             self.continents.resume(&points(self.noise_scale), &continents.1, continents.0),
             self.ridges.resume(&points(self.ridge_scale), &ridges.1, ridges.0),
@@ -1546,7 +1563,7 @@ impl ProceduralPlanet {
             && samples.iter().all(|&(f, _)| f == face)
         {
             let points: Vec<[f64; 2]> = samples.iter().map(|&(_, point)| point).collect();
-            return grid_states(self.layout.sphere(), face, self.gridded(), &points, spacing);
+            return self.grid_states(face, &points, spacing);
         }
         let mut out: [(usize, Vec<OctaveState>); 3] =
             std::array::from_fn(|_| (0, vec![OctaveState::START; samples.len()]));
@@ -1556,7 +1573,7 @@ impl ProceduralPlanet {
         for face in faces {
             let (indices, points): (Vec<usize>, Vec<[f64; 2]>) =
                 samples.iter().enumerate().filter(|(_, (f, _))| *f == face).map(|(n, &(_, point))| (n, point)).unzip();
-            let resumed = grid_states(self.layout.sphere(), face, self.gridded(), &points, spacing);
+            let resumed = self.grid_states(face, &points, spacing);
             for ((start, states), (out_start, out_states)) in resumed.into_iter().zip(&mut out) {
                 *out_start = start;
                 for (n, state) in indices.iter().zip(states) {
@@ -1734,6 +1751,35 @@ pub(crate) fn smoothstep(x: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// The most H (metres) changes where the sums lie in `ranges` and step by
+/// at most `[continents, ridges, hills]`: each step through
+/// [`ProceduralPlanet::combine`] as if all three came at once, each factor
+/// at its largest in `ranges` (a product `f·g` steps by at most
+/// `Δf·max g + max f·Δg`). With unit steps over
+/// [`SumRanges::EVERYWHERE`], how fast H can change with each sum (the
+/// octave grids' [`CoarseGrids`]).
+fn height_step(
+    settings: &PlanetSettings,
+    ranges: SumRanges,
+    [continents_step, ridges_step, hills_step]: [f64; 3],
+) -> f64 {
+    let (continents_low, continents_high) = ranges.continents;
+    let ridges = unit_ridges(ranges.ridges.1);
+    let hills = unit_hills(ranges.hills.1);
+    let mask = mountain_mask(continents_high);
+    // smoothstep rises by at most 1.5 over its width, and not at all
+    // below it; the ridges in [0, 1] step by half the sum's.
+    let mask_step = if mask > 0.0 { 1.5 / MOUNTAIN_INLAND * continents_step } else { 0.0 };
+    let ridges_cubed_step = 3.0 * ridges * ridges * 0.5 * ridges_step;
+    let mountains = ridges.powi(MOUNTAIN_SHARPNESS) * mask;
+    let mountains_step = ridges_cubed_step * mask + ridges.powi(MOUNTAIN_SHARPNESS) * mask_step;
+    let slope = if continents_low < 0.0 { OCEAN_SLOPE } else { LAND_SLOPE };
+    let landforms = settings.amplitude * (slope * continents_step + MOUNTAIN_SHARE * mountains_step);
+    let detail = settings.detail_amplitude
+        * (0.5 * hills_step * (1.0 + MOUNTAIN_ROUGHNESS * mountains) + MOUNTAIN_ROUGHNESS * hills * mountains_step);
+    landforms + detail
+}
+
 /// What the surface bounds of a column are made from: its heights' range
 /// and slope, found once (the noise), for bounds with any cave depth
 /// ([`ProceduralPlanet::bounds_reaching`]: arithmetic alone).
@@ -1795,8 +1841,9 @@ impl ProceduralPlanet {
         // its hottest call.) Each "corner" is the LOD-0 column whose far
         // corner it is, half a cell in along both axes: the samples span
         // the square of the column's own samples (far corners too), and
-        // sit on every grid's nodes (`octave_grid.rs`), so no grid is
-        // interpolated for them.
+        // sit on the nodes of every grid of up to 16 columns
+        // (`octave_grid.rs`): only the coarse grids are interpolated for
+        // them, 2 × 2 nodes each.
         let step = chunk / 2.0;
         let ball = self.relief_ball(column);
         let ranges = self.sum_ranges(ball);
@@ -2167,10 +2214,11 @@ mod tests {
     /// grid (ratio 0.01: 0.33 and 0.69) fails it.
     #[test]
     fn the_octave_grids_stay_close_to_the_exact_noise() {
-        let deviations = |ratio: f64| {
+        let deviations = |octave_grid: f64, octave_grid_error: f64| {
             let exact = ProceduralPlanet::new(PlanetSettings { octave_grid: 0.0, ..PlanetSettings::earth(3) }).unwrap();
             let grid =
-                ProceduralPlanet::new(PlanetSettings { octave_grid: ratio, ..PlanetSettings::earth(3) }).unwrap();
+                ProceduralPlanet::new(PlanetSettings { octave_grid, octave_grid_error, ..PlanetSettings::earth(3) })
+                    .unwrap();
             let per_edge = i64::from(grid.layout.voxels_per_edge(0));
             let mut state = 0x1234_5678_u64;
             let mut deviations: Vec<f64> = (0..40_000)
@@ -2185,11 +2233,18 @@ mod tests {
             deviations.sort_by(f64::total_cmp);
             (deviations[deviations.len() * 99 / 100], deviations[deviations.len() - 1])
         };
-        let (p99, largest) = deviations(16.0);
-        println!("ratio 16: 99 % within {p99:.4} voxels, largest {largest:.4}");
-        assert!(p99 < 0.1 && largest < 0.5, "ratio 16: 99 % within {p99} voxels, largest {largest}");
-        let (p99, largest) = deviations(0.01);
+        let presets = PlanetSettings::earth(3);
+        for (name, error) in [("ratio 16", 0.0), ("ratio 16 with coarse grids", presets.octave_grid_error)] {
+            let (p99, largest) = deviations(16.0, error);
+            println!("{name}: 99 % within {p99:.4} voxels, largest {largest:.4}");
+            assert!(p99 < 0.1 && largest < 0.5, "{name}: 99 % within {p99} voxels, largest {largest}");
+        }
+        let (p99, largest) = deviations(0.01, 0.0);
         assert!(p99 >= 0.1 || largest >= 0.5, "every octave from 16-column grids should show: {p99}, {largest}");
+        // Grids as coarse as the ratio alone allows, with no error budget.
+        let (p99, largest) = deviations(16.0, 1e9);
+        println!("ratio 16, no budget: 99 % within {p99:.4} voxels, largest {largest:.4}");
+        assert!(p99 >= 0.1 || largest >= 0.5, "coarse grids past the budget should show: {p99}, {largest}");
     }
 
     proptest::proptest! {

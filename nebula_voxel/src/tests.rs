@@ -1065,13 +1065,15 @@ fn a_ray_straight_up_along_an_axis_misses() {
 /// FNV-1a over the materials of chunks around the surface of a few
 /// columns (LOD 0 and 4, both presets, edges and corners among them), with
 /// or without the presets' caves and octave grids.
-fn terrain_fingerprint(caves: bool, grids: bool) -> u64 {
+fn terrain_fingerprint(caves: bool, grids: bool, coarse_grids: bool) -> u64 {
     let mut hash = 0xcbf2_9ce4_8422_2325_u64;
     let mut chunk = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
     for settings in [PlanetSettings::small(7), PlanetSettings::earth(11)] {
         let cave_size = if caves { settings.cave_size } else { 0.0 };
         let octave_grid = if grids { settings.octave_grid } else { 0.0 };
-        let planet = ProceduralPlanet::new(PlanetSettings { cave_size, octave_grid, ..settings }).unwrap();
+        let octave_grid_error = if coarse_grids { settings.octave_grid_error } else { 0.0 };
+        let planet =
+            ProceduralPlanet::new(PlanetSettings { cave_size, octave_grid, octave_grid_error, ..settings }).unwrap();
         let layout = *planet.layout();
         for (n, face) in CubeFace::ALL.into_iter().enumerate() {
             for lod in [0u8, 4] {
@@ -1102,13 +1104,18 @@ fn the_terrain_is_the_one_its_version_names() {
     // worlds are refused, never replayed onto other ground) and record the
     // new fingerprints here with its version: without caves or grids (the
     // planets saved before caves existed, `cave_size` 0), with the presets'
-    // caves (saved before octave grids, `octave_grid` 0), and with both.
+    // caves (saved before octave grids, `octave_grid` 0), with both (saved
+    // before coarse grids, `octave_grid_error` 0), and with all three.
     // A setting added since (`PlanetSettings::ADDED_SETTINGS`) leaves the
     // earlier fingerprints as they were: its old value is the old terrain.
-    const FINGERPRINTS: &[(u32, [u64; 3])] =
-        &[(1, [0xb127_8bc9_e17b_fc98, 0x30e7_fa30_f1d4_9dff, 0x4232_3f04_11fe_6ee7])];
-    let fingerprints =
-        [terrain_fingerprint(false, false), terrain_fingerprint(true, false), terrain_fingerprint(true, true)];
+    const FINGERPRINTS: &[(u32, [u64; 4])] =
+        &[(1, [0xb127_8bc9_e17b_fc98, 0x30e7_fa30_f1d4_9dff, 0x4232_3f04_11fe_6ee7, 0x10cf_5945_b87d_7cf9])];
+    let fingerprints = [
+        terrain_fingerprint(false, false, false),
+        terrain_fingerprint(true, false, false),
+        terrain_fingerprint(true, true, false),
+        terrain_fingerprint(true, true, true),
+    ];
     let recorded = FINGERPRINTS.iter().find(|(version, ..)| *version == ProceduralPlanet::TERRAIN_VERSION);
     assert_eq!(
         recorded.map(|&(_, prints)| prints),
@@ -1117,8 +1124,9 @@ fn the_terrain_is_the_one_its_version_names() {
     );
     assert_ne!(fingerprints[0], fingerprints[1], "the caves are not in the fingerprint");
     assert_ne!(fingerprints[1], fingerprints[2], "the grids are not in the fingerprint");
+    assert_ne!(fingerprints[2], fingerprints[3], "the coarse grids are not in the fingerprint");
     // Versions that were released stay distinct.
-    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && (0..3).all(|n| w[0].1[n] != w[1].1[n])));
+    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && (0..4).all(|n| w[0].1[n] != w[1].1[n])));
 }
 
 #[test]
@@ -1126,7 +1134,7 @@ fn canonical_settings_name_every_field_once_sorted() {
     let settings = PlanetSettings::earth(11);
     let pairs = settings.canonical();
     assert!(pairs.windows(2).all(|w| w[0].0 < w[1].0), "{pairs:?}");
-    assert_eq!(pairs.len(), 10);
+    assert_eq!(pairs.len(), 11);
     // Values read back to the same settings, and a change shows.
     let radius: f64 = pairs.iter().find(|(n, _)| *n == "radius").unwrap().1.parse().unwrap();
     assert_eq!(radius, settings.radius);

@@ -360,10 +360,12 @@ fn a_world_knows_its_terrain() {
         txn.commit().unwrap();
     };
     // What format-1 builds wrote: the Debug text of the settings before
-    // `cave_size` and `octave_grid`, the last fields, were added.
-    let heightfield = PlanetSettings { cave_size: 0.0, octave_grid: 0.0, ..settings.clone() };
-    let format_1_text =
-        |settings: &PlanetSettings| format!("{settings:?}").replace(", cave_size: 0.0, octave_grid: 0.0 }", " }");
+    // `cave_size`, `octave_grid` and `octave_grid_error`, the last fields,
+    // were added.
+    let heightfield = PlanetSettings { cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0, ..settings.clone() };
+    let format_1_text = |settings: &PlanetSettings| {
+        format!("{settings:?}").replace(", cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0 }", " }")
+    };
     assert!(!format_1_text(&heightfield).contains("cave") && !format_1_text(&heightfield).contains("octave"));
     write_v1(&path, &format_1_text(&heightfield));
     let bytes = std::fs::read(&path).unwrap();
@@ -387,7 +389,8 @@ fn a_world_knows_its_terrain() {
     drop(db);
     assert_eq!(World::open(settings.clone(), Some(&path)).unwrap().source().voxel(at).unwrap(), Voxel::SNOW);
     let path = scratch("format-1-other");
-    write_v1(&path, &format_1_text(&PlanetSettings { cave_size: 0.0, octave_grid: 0.0, ..PlanetSettings::small(4) }));
+    let other = PlanetSettings { cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0, ..PlanetSettings::small(4) };
+    write_v1(&path, &format_1_text(&other));
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings, Some(&path)), Err(WorldError::OtherPlanet { .. })));
     assert!(std::fs::read(&path).unwrap() == bytes, "a foreign format-1 file was modified");
