@@ -75,7 +75,7 @@ pub use nebula_math::FaceDirection;
 pub use occlusion::{Clearance, TerrainHorizon};
 pub use relation::{ChunkLodContext, NeighborLodRelation};
 pub use settings::{BalanceMode, Camera, LodError, LodSettings};
-pub use tree::{Cull, LodChanges, LodStats, LodTree, children, parent};
+pub use tree::{Cull, LodChanges, LodStats, LodTree, children, cull_reaches, parent};
 
 #[cfg(test)]
 mod tests;

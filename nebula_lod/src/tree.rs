@@ -1146,12 +1146,33 @@ impl LodTree {
     /// changed since.
     #[must_use]
     pub fn cull_covers(&self, camera: &Camera) -> bool {
-        let fov = self.settings.fov_y_degrees;
-        self.culled.is_some_and(|(culled, margin)| {
-            culled.position.distance(camera.position) <= margin.distance
-                && Frustum::with_margin(&culled, fov, margin).covers(camera, fov)
-        })
+        self.culled.is_some_and(|culled| cull_reaches(culled, self.settings.fov_y_degrees, camera))
     }
+
+    /// The camera and margin the last cull was made for (`None` before
+    /// the first): what [`cull_reaches`] takes.
+    #[must_use]
+    pub fn culled_for(&self) -> Option<(Camera, CullMargin)> {
+        self.culled
+    }
+}
+
+impl Cull {
+    /// The camera and margin this cull was made for (`None` if none was
+    /// made): what [`cull_reaches`] takes.
+    #[must_use]
+    pub fn culled_for(&self) -> Option<(Camera, CullMargin)> {
+        self.culled
+    }
+}
+
+/// Whether a cull made for `(culled, margin)` holds every leaf `camera`
+/// sees with a field of view of `fov_y_degrees` (the tree unchanged since):
+/// its eye within the margin's distance, its frustum inside the opened one.
+#[must_use]
+pub fn cull_reaches((culled, margin): (Camera, CullMargin), fov_y_degrees: f64, camera: &Camera) -> bool {
+    culled.position.distance(camera.position) <= margin.distance
+        && Frustum::with_margin(&culled, fov_y_degrees, margin).covers(camera, fov_y_degrees)
 }
 
 /// The four children of `column` (one LOD finer, in the order (0,0),

@@ -14,14 +14,17 @@
 //! of the new view waiting for its meshes and drawn through a stand-in or
 //! not at all (meshing is paused, so each iteration sees the same state).
 //! `step_prefetching`: that view settled, with its whole out-of-view
-//! prefetch set still to mesh.
+//! prefetch set still to mesh. `step_turning`: that view turning 0.5° a
+//! frame, a frame being the update and 4 ms of drawing, the plan before
+//! drawn while the LOD thread makes the next (the default), against
+//! `step_turning_waiting`, which waits for each plan.
 
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nebula_lod::{Camera, LodSettings};
-use nebula_math::DVec3;
+use nebula_math::{DQuat, DVec3};
 use nebula_meshing::RenderMesh;
 use nebula_voxel::{ChunkKey, PlanetSettings, ProceduralPlanet};
 use nebula_world::stream::{MeshHandle, Streamer};
@@ -126,6 +129,52 @@ fn bench(c: &mut Criterion) {
     let figures = streamer.figures();
     println!("prefetching: {} chunks drawn, {} jobs queued", figures.chunks, figures.jobs_in_flight);
     group.bench_function("step_prefetching", |b| b.iter(|| streamer.update(behind, &mut upload)));
+
+    // Turning 0.5° a frame, each frame the update and 4 ms of drawing (a
+    // GPU's frame, while the LOD thread plans the next): the frame's whole
+    // time, drawing the plan before while the next is made
+    // (`step_turning`, the default) against waiting for each plan.
+    group.sample_size(20);
+    for (name, draw_while_planning) in [("step_turning", true), ("step_turning_waiting", false)] {
+        streamer.set_draw_while_planning(draw_while_planning);
+        let mut angle = 0.0_f64;
+        let (f0, d0) = (streamer.lod_thread_frames(), streamer.frames_drawn_while_planning());
+        let mut waits: Vec<f64> = Vec::new();
+        let mut ups: Vec<f64> = Vec::new();
+        group.bench_function(name, |b| {
+            b.iter_custom(|iterations| {
+                let start = Instant::now();
+                for _ in 0..iterations {
+                    angle += 0.5;
+                    let turn = DQuat::from_axis_angle(behind.up, angle.to_radians());
+                    let t = Instant::now();
+                    streamer.update(Camera { forward: turn * behind.forward, ..behind }, &mut upload);
+                    ups.push(t.elapsed().as_secs_f64() * 1e3);
+                    waits.push(streamer.figures().times.lod_wait_ms);
+                    std::thread::sleep(Duration::from_millis(4));
+                }
+                start.elapsed()
+            });
+        });
+        let (f1, d1) = (streamer.lod_thread_frames(), streamer.frames_drawn_while_planning());
+        ups.sort_by(f64::total_cmp);
+        waits.sort_by(f64::total_cmp);
+        let n = ups.len();
+        println!(
+            "{name}: taken {} missed {} drawn again {} of {n}; update median {:.2} p95 {:.2} mean {:.2}; wait median {:.2} p95 {:.2} mean {:.2}",
+            f1.0 - f0.0,
+            f1.1 - f0.1,
+            d1 - d0,
+            ups[n / 2],
+            ups[n * 95 / 100],
+            ups.iter().sum::<f64>() / n as f64,
+            waits[n / 2],
+            waits[n * 95 / 100],
+            waits.iter().sum::<f64>() / n as f64
+        );
+    }
+    streamer.set_draw_while_planning(true);
+    println!("frames drawn from the plan before while the next was made: {}", streamer.frames_drawn_while_planning());
     group.finish();
 }
 

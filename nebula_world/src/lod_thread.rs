@@ -129,6 +129,17 @@ pub(crate) struct Outcome<H> {
     pub(crate) prefetch_mismatch: Option<&'static str>,
 }
 
+impl<H> Outcome<H> {
+    /// The camera and margin the outcome's tree was culled for (before
+    /// the frame thread narrows it to its camera).
+    pub(crate) fn culled_for(&self) -> Option<(Camera, CullMargin)> {
+        match self.tree.as_ref()? {
+            MadeTree::Whole(tree, _) => tree.culled_for(),
+            MadeTree::Cull(cull, _) => cull.culled_for(),
+        }
+    }
+}
+
 /// The frame thread's end of the LOD thread.
 pub(crate) struct LodThread<S, H> {
     requests: Sender<(Request<S, H>, u64)>,
@@ -136,8 +147,13 @@ pub(crate) struct LodThread<S, H> {
     outcomes: Mutex<Receiver<Outcome<H>>>,
     /// Tree-changing requests sent so far.
     commands: u64,
-    /// An update asked for whose outcome has not come.
+    /// An update asked for whose outcome has not been taken.
     in_flight: bool,
+    /// The outcome of the update in flight, come before it was taken
+    /// ([`LodThread::ready`]).
+    arrived: Option<Outcome<H>>,
+    /// The frame the update in flight was asked in.
+    asked_in: u64,
     /// The numbered copy the frame thread's tree is, while it is one
     /// ([`LodThread::hold`]; a tree-changing request ends it).
     holding: Option<u64>,
@@ -164,6 +180,8 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             outcomes: Mutex::new(outcomes),
             commands: 0,
             in_flight: false,
+            arrived: None,
+            asked_in: 0,
             holding: None,
             copies: 0,
             repeats: 0,
@@ -175,11 +193,38 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
     /// selection planned on it (a still camera's too: the plan follows the
     /// meshes that come).
     pub(crate) fn ask(&mut self, voxels: &Arc<S>, camera: Camera, margin: CullMargin, select: SelectRequest<H>) {
+        let frame = select.settings.frame;
         let request =
             Request::Update { voxels: voxels.clone(), camera, margin, holding: self.holding, select: Box::new(select) };
         if self.requests.send((request, self.commands)).is_ok() {
             self.in_flight = true;
+            // Asked for `frame`, in the update before it.
+            self.asked_in = frame.saturating_sub(1);
         }
+    }
+
+    /// Whether an update is asked for and its outcome not taken yet.
+    pub(crate) fn in_flight(&self) -> bool {
+        self.in_flight
+    }
+
+    /// Whether the outcome of the update in flight has come (without
+    /// waiting for it): [`LodThread::take`] then returns at once.
+    pub(crate) fn ready(&mut self) -> bool {
+        if self.arrived.is_none() && self.in_flight {
+            self.arrived = self.outcomes.get_mut().ok().and_then(|outcomes| outcomes.try_recv().ok());
+        }
+        self.arrived.is_some()
+    }
+
+    /// The frame the update in flight (or taken last) was asked in.
+    pub(crate) fn asked_in(&self) -> u64 {
+        self.asked_in
+    }
+
+    /// Tree-changing requests sent so far.
+    pub(crate) fn commands(&self) -> u64 {
+        self.commands
     }
 
     /// The outcome of the update asked for, waiting for it if it has not
@@ -190,7 +235,10 @@ impl<S: VoxelSource + Send + Sync + 'static, H: MeshHandle> LodThread<S, H> {
             return None;
         }
         self.in_flight = false;
-        let outcome = self.outcomes.get_mut().ok()?.recv().ok()?;
+        let outcome = match self.arrived.take() {
+            Some(outcome) => outcome,
+            None => self.outcomes.get_mut().ok()?.recv().ok()?,
+        };
         self.copies += u64::from(matches!(outcome.tree, Some(MadeTree::Whole(..))));
         self.repeats += u64::from(outcome.repeated);
         self.prefetch_plans += u64::from(outcome.prefetch_only);
@@ -262,6 +310,7 @@ impl<S, H> Drop for LodThread<S, H> {
     /// game drops its renderer after it).
     fn drop(&mut self) {
         if self.in_flight
+            && self.arrived.is_none()
             && let Ok(outcomes) = self.outcomes.get_mut()
         {
             drop(outcomes.recv());
@@ -387,6 +436,8 @@ fn serve<S: VoxelSource + Send + Sync + 'static, H: MeshHandle>(
             }
         }
         let Some((voxels, camera, margin, holding, select)) = update else { continue };
+        #[cfg(test)]
+        std::thread::sleep(std::time::Duration::from_millis(select.selection.plan_delay_ms));
         let updated = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             let changes = tree.update(&*voxels, &camera)?;
             let same_tree =

@@ -28,12 +28,15 @@ use crate::stream::{
 };
 
 /// How much wider than the camera's own a plan made ahead for a predicted
-/// camera draws its view, degrees (and a tenth of the eye's margin,
-/// metres): the camera that came was up to about half a degree and a few
-/// metres off the prediction in a 1 km/s flight at 10 frames a second. The
-/// plan cannot serve a camera that sees past it (the frame thread plans
-/// again), and the wider, the more is drawn out of sight.
-const PLANNED_VIEW_ANGLE_DEGREES: f64 = 1.0;
+/// camera draws its view at least, degrees (and a tenth of the eye's
+/// margin, metres): the camera that came was up to about half a degree and
+/// a few metres off the prediction in a 1 km/s flight at 10 frames a
+/// second. The plan cannot serve a camera that sees past it (the frame
+/// thread plans again), and the wider, the more is drawn out of sight. A
+/// turning camera whose plans take frames to make gets the turn of those
+/// frames more ([`SelectSettings::view_angle`]), so that the plan serves
+/// them while the next is made.
+pub(crate) const PLANNED_VIEW_ANGLE_DEGREES: f64 = 1.0;
 
 /// What the selection keeps from frame to frame: moved to the LOD thread
 /// with each request for a plan and back with the plan.
@@ -61,6 +64,10 @@ pub(crate) struct Selection {
     /// them so to see the full plan made beside each catch it.
     #[cfg(test)]
     pub(crate) prefetch_plans_queue_nothing: bool,
+    /// Milliseconds the LOD thread sleeps before each update it is asked
+    /// for: a test makes its plans slow so to see frames drawn meanwhile.
+    #[cfg(test)]
+    pub(crate) plan_delay_ms: u64,
 }
 
 impl Selection {
@@ -85,6 +92,8 @@ impl Selection {
             view_busy: true,
             #[cfg(test)]
             prefetch_plans_queue_nothing: false,
+            #[cfg(test)]
+            plan_delay_ms: 0,
         }
     }
 }
@@ -134,6 +143,9 @@ pub(crate) struct SelectSettings {
     /// it is drawn from may be, metres (0: made for the camera that came).
     pub(crate) camera: Camera,
     pub(crate) eye_margin: f64,
+    /// How much wider than the camera's own the view planned is, radians,
+    /// where `eye_margin` is not 0 ([`PLANNED_VIEW_ANGLE_DEGREES`] or more).
+    pub(crate) view_angle: f64,
     /// Whether far columns' tops may be sampled
     /// ([`VoxelSource::surface_top_radius`], tens of microseconds each, up
     /// to [`NEW_TOPS_PER_PLAN`]): on the LOD thread, not on the frame
@@ -264,6 +276,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         near_budget: _,
         camera,
         eye_margin,
+        view_angle,
         sample_tops,
     } = settings;
     let eye = camera.position;
@@ -272,7 +285,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // that comes, a little off the prediction, seldom sees past it.
     let views = (eye_margin > 0.0).then(|| {
         let fov = tree.settings().fov_y_degrees;
-        let margin = CullMargin { angle: PLANNED_VIEW_ANGLE_DEGREES.to_radians(), distance: 0.1 * eye_margin };
+        let margin = CullMargin { angle: view_angle, distance: 0.1 * eye_margin };
         (Frustum::new(&camera, fov), Frustum::with_margin(&camera, fov, margin))
     });
     let mut unseen = Vec::new();

@@ -80,7 +80,7 @@ use std::time::Instant;
 // thread's time in a streaming view (keys are not attacker controlled).
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
-use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, NodeBounds, parent};
+use nebula_lod::{Camera, CullMargin, LodError, LodSettings, LodTree, NodeBounds, cull_reaches, parent};
 use nebula_math::{FaceDirection, FaceEdge};
 use nebula_meshing::{
     ChunkDraw, ChunkLodContext, ChunkMeshBuffer, FrameDraw, MeshError, MeshOptions, RenderMesh, mesh_chunk, skirt_depth,
@@ -91,7 +91,8 @@ use crate::lod_thread::{LodThread, MadeTree, Outcome, SelectRequest};
 use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
 use crate::select::{
-    Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent, least_recently_used,
+    PLANNED_VIEW_ANGLE_DEGREES, Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent,
+    least_recently_used,
 };
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
@@ -1208,6 +1209,33 @@ pub struct Streamer<S, H> {
     view: LayerView,
     /// How seams between LODs are closed.
     seams: SeamStrategy,
+    /// What the draw list was planned for, while it was planned ahead
+    /// with a margin: the cameras it serves without a new plan.
+    drawn_for: Option<DrawnFor>,
+    /// Whether an update whose plan is not ready draws the last one again
+    /// while it serves the camera (see [`Streamer::set_draw_while_planning`]).
+    draw_while_planning: bool,
+    /// Frames drawn from the plan before while the LOD thread planned.
+    frames_drawn_while_planning: u64,
+    /// Frames from asking the LOD thread to taking its outcome, last time:
+    /// how far ahead the next request predicts the camera.
+    plan_latency: u64,
+    /// The draw list before is taken to serve any camera while the LOD
+    /// thread plans: a test breaks it so to see its check catch it.
+    #[cfg(test)]
+    pub(crate) serve_any_camera: bool,
+}
+
+/// The cull a plan made ahead was made on (its camera and margin), with
+/// the leaves in view it draws nothing for: a camera that cull covers and
+/// that sees none of those leaves is served by the plan's draw list.
+struct DrawnFor {
+    camera: Camera,
+    margin: CullMargin,
+    unseen: Vec<NodeBounds>,
+    /// The LOD thread's tree-changing requests when it was taken: one sent
+    /// since (an edit, a new view) ends it.
+    commands: u64,
 }
 
 impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
@@ -1304,6 +1332,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             lod_frames: (0, 0),
             last_step: 0.0,
             seams: SeamStrategy::Skirts,
+            drawn_for: None,
+            draw_while_planning: true,
+            frames_drawn_while_planning: 0,
+            plan_latency: 1,
+            #[cfg(test)]
+            serve_any_camera: false,
         };
         streamer.set_lod_thread(true);
         streamer.mesh_roots(upload)?;
@@ -1471,7 +1505,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
         let start = Instant::now();
+        // The LOD thread still planning (a narrow lens's turn can take it
+        // several frames): the plan before, if it serves this camera, is
+        // drawn again instead of waiting.
+        let planning = self.early.is_none() && self.lod_thread.as_mut().is_some_and(|t| t.in_flight() && !t.ready());
+        if planning && self.draw_while_planning && self.drawn_plan_serves(&camera) {
+            self.draw_again_for(camera, start);
+            return;
+        }
         let mut made_ahead = self.take_outcome();
+        if made_ahead.is_some()
+            && let Some(thread) = self.lod_thread.as_ref()
+        {
+            self.plan_latency = self.frame.saturating_sub(thread.asked_in()).clamp(1, MAX_PLAN_LATENCY);
+        }
         self.times.lod_wait_ms = start.elapsed().as_secs_f64() * 1e3;
         #[cfg(test)]
         if let Some(differs) = made_ahead.as_ref().and_then(|outcome| outcome.prefetch_mismatch) {
@@ -1493,6 +1540,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // camera that came; else the frame thread updates its own.
         let mut plan = None;
         let made = made_ahead.as_ref().map(|outcome| (outcome.plan_number, outcome.repeated));
+        let made_for = made_ahead.as_ref().and_then(Outcome::culled_for);
+        // An update that failed on the thread is made here, where its error
+        // is found and reported.
+        let failed_ahead = made_ahead.as_ref().is_some_and(|outcome| outcome.tree.is_none());
         match made_ahead.map(|outcome| self.take_made_ahead(outcome, &camera)) {
             Some(Some(planned)) => {
                 self.lod_frames.0 += 1;
@@ -1501,6 +1552,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             }
             missed => {
                 self.lod_frames.1 += u64::from(missed.is_some());
+                // Made for a camera this one left (it turned past the
+                // margin while the thread planned): the plan before, if it
+                // serves, is drawn again and the thread asked anew, rather
+                // than planning here.
+                if missed.is_some() && !failed_ahead && self.draw_while_planning && self.drawn_plan_serves(&camera) {
+                    self.draw_again(start);
+                    self.ask_ahead(&previous, &camera, last_step);
+                    return;
+                }
                 self.update_tree(camera);
             }
         }
@@ -1511,6 +1571,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 Some(plan) => (plan, false),
                 None => (self.plan_here(), true),
             };
+            // What the draw list will serve while the next plan is made.
+            self.drawn_for = made_for.filter(|_| !here).map(|(camera, margin)| DrawnFor {
+                camera,
+                margin,
+                unseen: plan.unseen.clone(),
+                commands: self.lod_thread.as_ref().map_or(0, LodThread::commands),
+            });
             self.times.planned_ahead = !here;
             let number = made.filter(|_| !here).map(|(number, _)| number);
             let drawn_again = made.is_some_and(|(_, repeated)| repeated)
@@ -1559,15 +1626,91 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
     }
 
+    /// Whether the draw list serves `camera` as it is: it was planned
+    /// ahead on a cull that covers `camera` ([`cull_reaches`]), for the
+    /// layers `camera` sees, with no tree-changing request since, and
+    /// `camera` sees none of the leaves in view it draws nothing for.
+    fn drawn_plan_serves(&self, camera: &Camera) -> bool {
+        let Some(drawn) = &self.drawn_for else { return false };
+        #[cfg(test)]
+        if self.serve_any_camera {
+            return true;
+        }
+        let fov = self.tree.settings().fov_y_degrees;
+        if camera.check().is_err()
+            || self.lod_thread.as_ref().is_none_or(|thread| thread.commands() != drawn.commands)
+            || self.voxels.layer_view(camera.position) != self.view
+            || !cull_reaches((drawn.camera, drawn.margin), fov, camera)
+        {
+            return false;
+        }
+        let frustum = nebula_lod::Frustum::new(camera, fov);
+        let horizon = nebula_lod::Horizon::new(camera.position, self.tree.min_surface_radius());
+        drawn.unseen.iter().all(|bounds| frustum.excludes(bounds) || horizon.hides(bounds))
+    }
+
+    /// This frame draws the draw list before for `camera`
+    /// ([`Self::drawn_plan_serves`]) while the LOD thread plans: nothing is
+    /// collected or planned.
+    fn draw_again_for(&mut self, camera: Camera, start: Instant) {
+        let previous = std::mem::replace(&mut self.eye, camera);
+        self.last_step = previous.position.distance(camera.position);
+        self.draw_again(start);
+    }
+
+    /// The draw list before, its walls turned for the eye that came (which
+    /// of a column's sides look away moves with it); no mesh is collected
+    /// (a new one could change a seam the list was checked against).
+    fn draw_again(&mut self, start: Instant) {
+        if self.options.cull_back_sides {
+            let cull = (*self.tree.screen_space(), self.morphs());
+            let eye = self.eye.position;
+            face_walls(&*self.voxels, &self.cache.columns, &mut self.draw, &self.drawn_slots, eye, cull);
+        }
+        self.frames_drawn_while_planning += 1;
+        let millis = start.elapsed().as_secs_f64() * 1e3;
+        self.times = StageTimes {
+            lod_ms: millis,
+            select_ms: millis,
+            planned_ahead: true,
+            meshing_total_ms: self.times.meshing_total_ms,
+            chunks_meshed: self.times.chunks_meshed,
+            chunks_remeshed: self.times.chunks_remeshed,
+            mesh_errors: self.times.mesh_errors,
+            ..StageTimes::default()
+        };
+    }
+
+    /// Whether an update whose plan the LOD thread has not finished draws
+    /// the plan before again, while it serves the camera (a camera the
+    /// margin it was planned with covers; `true`, the default), instead of
+    /// waiting for the new one. Such frames collect no meshes; the thread
+    /// is then asked for the camera as far ahead as its plans take.
+    pub fn set_draw_while_planning(&mut self, on: bool) {
+        self.draw_while_planning = on;
+    }
+
+    /// Frames drawn from the plan before while the LOD thread planned
+    /// ([`Streamer::set_draw_while_planning`]).
+    #[must_use]
+    pub fn frames_drawn_while_planning(&self) -> u64 {
+        self.frames_drawn_while_planning
+    }
+
     /// Asks the LOD thread for the next frame's tree and selection, for the
-    /// camera that the motion from `previous` to `current` predicts; the
-    /// selection's state and the cached columns go with the request.
+    /// camera that the motion from `previous` to `current` predicts (as many
+    /// frames ahead as the last plan took to come); the selection's state
+    /// and the cached columns go with the request.
     fn ask_ahead(&mut self, previous: &Camera, current: &Camera, last_step: f64) {
         if self.lod_thread.is_none() {
             return;
         }
-        let (next, margin) = predict(previous, current, last_step);
-        let settings = self.select_settings(self.frame + 1, next, margin.distance, true);
+        let latency = self.plan_latency;
+        let (next, margin, turn) = predict(previous, current, last_step, latency);
+        // Wide enough for the turn of the frames the plan is to serve while
+        // the next is made (within the cull's margin).
+        let view_angle = (PLANNED_VIEW_ANGLE_DEGREES.to_radians() + turn * (latency - 1) as f64).min(margin.angle);
+        let settings = self.select_settings(self.frame + 1, (next, margin.distance, view_angle), true);
         let select = SelectRequest {
             selection: self.selection.take().unwrap_or_else(|| Box::new(Selection::new())),
             columns: self.cache.columns.clone(),
@@ -1654,7 +1797,12 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
 
     /// The settings of a plan for `frame`, for `camera` (its eye, or one
     /// within `eye_margin` of it).
-    fn select_settings(&self, frame: u64, camera: Camera, eye_margin: f64, sample_tops: bool) -> SelectSettings {
+    fn select_settings(
+        &self,
+        frame: u64,
+        (camera, eye_margin, view_angle): (Camera, f64, f64),
+        sample_tops: bool,
+    ) -> SelectSettings {
         SelectSettings {
             frame,
             view: self.view,
@@ -1667,6 +1815,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             near_budget: self.cache.near_budget(self.held),
             camera,
             eye_margin,
+            view_angle,
             sample_tops,
         }
     }
@@ -1688,7 +1837,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     fn plan_here(&mut self) -> Plan<H> {
         // Far tops are sampled on the LOD thread, off the frame's time;
         // without one, here (the view would never settle on them).
-        let settings = self.select_settings(self.frame, self.eye, 0.0, self.lod_thread.is_none());
+        let settings = self.select_settings(self.frame, (self.eye, 0.0, 0.0), self.lod_thread.is_none());
         let mut selection = self.selection.take().unwrap_or_else(|| Box::new(Selection::new()));
         let input = SelectInput {
             voxels: &*self.voxels,
@@ -1747,23 +1896,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         gained.retain(|key| stale.contains_key(key));
         let (voxels, eye, seams, options) = (&*self.voxels, self.eye.position, self.seams, self.options);
         if options.cull_back_sides {
-            for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(&slots) {
-                let cached = slot.and_then(|slot| cache.columns.in_slot(slot, *column));
-                let scale = WallScale {
-                    eye,
-                    screen,
-                    morph,
-                    voxel_edge: voxels.layout().voxel_edge(column.lod),
-                    parent_error: chunk_draw.parent_error,
-                };
-                // A column not cached (none drawn) draws every side.
-                let facing = match cached.or_else(|| cache.columns.get(column)) {
-                    Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
-                    None => SideFacing::NOTHING_HIDDEN,
-                };
-                chunk_draw.hidden_sides = facing.hidden;
-                chunk_draw.hidden_flattening = facing.hidden_flattening;
-            }
+            face_walls(voxels, &cache.columns, &mut draw, &slots, eye, (screen, morph));
         }
         // A plan made ahead asks for what this update collected: asked
         // again if it still is (a failure waits for its retry below, an
@@ -2892,16 +3025,52 @@ pub enum StreamError {
     Threads(String),
 }
 
-/// The camera of the next frame if it moves and turns as from `previous`
-/// to `current`, and the margin a cull for it needs to cover the camera
-/// that comes: 3° of turn and half the last step (at least a metre) of
-/// error. A step more than four times the one before (`last_step`, plus
-/// 10 m) is a jump (a teleport, a new view), not a motion to go on with:
-/// the camera is expected to stay.
-fn predict(previous: &Camera, current: &Camera, last_step: f64) -> (Camera, CullMargin) {
+/// The most frames ahead the LOD thread is asked to plan for
+/// ([`predict`]): a plan that takes longer is not waited for past what its
+/// margin covers.
+const MAX_PLAN_LATENCY: u64 = 8;
+
+/// Which sides of each drawn column look away from `eye` (`scale`: the
+/// frame's screen-space constants and whether it morphs), into the draw
+/// list (`slots`: each column's cache slot, in its order).
+fn face_walls<H: MeshHandle>(
+    voxels: &dyn VoxelSource,
+    columns: &ColumnStore<H>,
+    draw: &mut DrawList,
+    slots: &[Option<usize>],
+    eye: nebula_math::DVec3,
+    (screen, morph): (nebula_math::ScreenSpace, bool),
+) {
+    for ((column, chunk_draw), slot) in draw.columns.iter_mut().zip(slots) {
+        let cached = slot.and_then(|slot| columns.in_slot(slot, *column));
+        let scale = WallScale {
+            eye,
+            screen,
+            morph,
+            voxel_edge: voxels.layout().voxel_edge(column.lod),
+            parent_error: chunk_draw.parent_error,
+        };
+        // A column not cached (none drawn) draws every side.
+        let facing = match cached.or_else(|| columns.get(column)) {
+            Some(cached) => cached.sides.facing(&scale, cached.top_radius(voxels.layout())),
+            None => SideFacing::NOTHING_HIDDEN,
+        };
+        chunk_draw.hidden_sides = facing.hidden;
+        chunk_draw.hidden_flattening = facing.hidden_flattening;
+    }
+}
+
+/// The camera `frames` frames on (at least one) if it moves and turns
+/// each frame as from `previous` to `current`, the margin a cull for it
+/// needs to cover the camera that comes (3° of turn and half the steps,
+/// at least a metre, of error) and the turn of one frame, radians. A step
+/// more than four times the one before (`last_step`, plus 10 m) is a jump
+/// (a teleport, a new view), not a motion to go on with: the camera is
+/// expected to stay.
+fn predict(previous: &Camera, current: &Camera, last_step: f64, frames: u64) -> (Camera, CullMargin, f64) {
     let step = current.position - previous.position;
     if step.length() > 4.0 * last_step + 10.0 {
-        return (*current, CullMargin { angle: 3f64.to_radians(), distance: 1.0 });
+        return (*current, CullMargin { angle: 3f64.to_radians(), distance: 1.0 }, 0.0);
     }
     let (before, now) = (previous.forward.normalize_or_zero(), current.forward.normalize_or_zero());
     let turn = if before == nebula_math::DVec3::ZERO || now == nebula_math::DVec3::ZERO {
@@ -2909,13 +3078,17 @@ fn predict(previous: &Camera, current: &Camera, last_step: f64) -> (Camera, Cull
     } else {
         nebula_math::DQuat::from_rotation_arc(before, now)
     };
-    let next = Camera {
-        position: current.position + step,
-        forward: turn * current.forward,
-        up: turn * current.up,
-        aspect: current.aspect,
-    };
-    (next, CullMargin { angle: 3f64.to_radians(), distance: (0.5 * step.length()).max(1.0) })
+    let mut next = *current;
+    for _ in 0..frames.max(1) {
+        next = Camera {
+            position: next.position + step,
+            forward: turn * next.forward,
+            up: turn * next.up,
+            aspect: current.aspect,
+        };
+    }
+    let distance = (0.5 * step.length() * frames.max(1) as f64).max(1.0);
+    (next, CullMargin { angle: 3f64.to_radians(), distance }, turn.angle_between(nebula_math::DQuat::IDENTITY))
 }
 
 #[cfg(test)]

@@ -1152,6 +1152,9 @@ mod streaming {
         // still taking what the thread made.
         let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
         let (mut streamer, camera, _) = settled_over_the_ground(&world, 0.0, 20);
+        // Every frame takes the LOD thread's plan (waiting for it), as the
+        // counts below assume.
+        streamer.set_draw_while_planning(false);
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         // Its figures by LOD add up, and name the LODs drawn.
         let figures = streamer.figures();
@@ -1187,6 +1190,9 @@ mod streaming {
             let camera = Camera { position: eye, forward, up, aspect: 1.6 };
             let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
             let mut streamer = Streamer::new(world.voxels(), lod, camera, 2, &mut { upload }).unwrap();
+            // Every frame takes the LOD thread's plan (waiting for it), as the
+            // counts below assume.
+            streamer.set_draw_while_planning(false);
             streamer.selection_mut().prefetch_plans_queue_nothing = queue_nothing;
             // The view settled, its prefetching begun.
             for done in 0.. {
@@ -1232,6 +1238,9 @@ mod streaming {
         let looking = |forward: DVec3| Camera { position: eye, forward, up, aspect: 1.6 };
         let lod = LodSettings { screen_height_px: 400.0, fov_y_degrees: 60.0, ..LodSettings::default() };
         let mut streamer = Streamer::new(world.voxels(), lod, looking(side), 2, &mut { upload }).unwrap();
+        // Every frame takes the LOD thread's plan (waiting for it), as the
+        // counts below assume.
+        streamer.set_draw_while_planning(false);
         streamer.cache.prefetch = false;
         streamer.cache.free_after_frames = u64::MAX / 2;
         let settle = |streamer: &mut Streamer<_, Sized>, camera: Camera| {
@@ -1340,6 +1349,56 @@ mod streaming {
     /// A camera 40 m over `planet`'s ground at a fixed place, 60 m to the
     /// side, looking at it (its seams across several LODs in view), and
     /// the LOD settings of a 400-pixel 60° screen.
+    #[test]
+    fn a_turning_view_is_drawn_from_the_plan_before_while_the_next_is_made_and_misses_no_leaf() {
+        // The LOD thread made slow (12 ms before each update, tests only)
+        // and the camera turning 1° a frame, frames 2 ms apart: frames
+        // whose plan is not ready draw the plan before, while its margin
+        // covers the camera, instead of waiting. Each frame, the leaves the
+        // camera sees (the frame thread's tree culled for it here) that no
+        // drawn column covers (the leaf, an ancestor or a descendant) are
+        // counted: the ground's own horizon hides some, drawn as nothing
+        // (frames that wait for each plan leave 79 over this turn), a draw
+        // list drawn past its margin leaves thousands (broken to draw the
+        // plan before for any camera: 22,527).
+        let run = |draw_while_planning: bool, serve_any_camera: bool| {
+            let world = crate::World::open(PlanetSettings::small(7), None).unwrap();
+            let (mut streamer, camera, _) = settled_over_the_ground(&world, 0.0, 20);
+            let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+            streamer.selection_mut().plan_delay_ms = 12;
+            streamer.set_draw_while_planning(draw_while_planning);
+            streamer.serve_any_camera = serve_any_camera;
+            let before = streamer.frames_drawn_while_planning();
+            let mut uncovered = 0;
+            for frame in 0..150 {
+                let turn = nebula_math::DQuat::from_axis_angle(camera.up.normalize(), f64::from(frame).to_radians());
+                let turned = Camera { forward: turn * camera.forward, ..camera };
+                streamer.update(turned, &mut { upload });
+                let mut tree = streamer.tree().clone();
+                tree.cull(&turned).unwrap();
+                let drawn: Vec<nebula_voxel::ChunkColumn> =
+                    streamer.draw_list().columns.iter().map(|&(column, _)| column).collect();
+                let overlaps = |a: nebula_voxel::ChunkColumn, b: nebula_voxel::ChunkColumn| {
+                    let (fine, coarse) = if a.lod <= b.lod { (a, b) } else { (b, a) };
+                    let up = u32::from(coarse.lod - fine.lod);
+                    fine.face == coarse.face && fine.x >> up == coarse.x && fine.y >> up == coarse.y
+                };
+                uncovered +=
+                    tree.visible_leaves().iter().filter(|&&leaf| !drawn.iter().any(|&d| overlaps(d, leaf))).count();
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            (streamer.frames_drawn_while_planning() - before, uncovered)
+        };
+        let (drawn_again, uncovered) = run(true, false);
+        println!("{drawn_again} of 150 frames drew the plan before; {uncovered} leaves uncovered");
+        assert!(drawn_again >= 10, "only {drawn_again} of 150 frames drew the plan before while the next was made");
+        assert!(uncovered <= 150, "{uncovered} leaves in view uncovered by the draw list over 150 frames");
+        let (waited, _) = run(false, false);
+        assert_eq!(waited, 0, "frames drew the plan before with drawing while planning off");
+        let (_, uncovered) = run(true, true);
+        assert!(uncovered > 1_500, "the plan before drawn for any camera left only {uncovered} leaves uncovered");
+    }
+
     fn looking_at_the_ground_40_m_up(planet: &ProceduralPlanet) -> (Camera, LodSettings) {
         let up = DVec3::new(0.3, 0.8, 0.5).normalize();
         let ground = planet.surface_point(up);
@@ -1361,6 +1420,9 @@ mod streaming {
         let (camera, lod) = looking_at_the_ground_40_m_up(&planet);
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let mut streamer = Streamer::new(planet, lod, camera, 2, &mut { upload }).unwrap();
+        // The next update collects the mesh put in its way (it waits for
+        // the LOD thread's plan, not drawing the one before again).
+        streamer.set_draw_while_planning(false);
         streamer.keep_cpu_meshes(true);
         streamer.set_seam_strategy(crate::seams::SeamStrategy::Constrained);
         settle_seams(&mut streamer, camera, 20_000);
