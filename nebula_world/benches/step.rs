@@ -133,48 +133,50 @@ fn bench(c: &mut Criterion) {
     // Turning 0.5° a frame, each frame the update and 4 ms of drawing (a
     // GPU's frame, while the LOD thread plans the next): the frame's whole
     // time, drawing the plan before while the next is made
-    // (`step_turning`, the default) against waiting for each plan.
+    // (`step_turning`, the default) against waiting for each plan; printed
+    // after each, the update's own time and its wait for the LOD thread
+    // (median, 95th percentile and mean over every frame run).
     group.sample_size(20);
     for (name, draw_while_planning) in [("step_turning", true), ("step_turning_waiting", false)] {
         streamer.set_draw_while_planning(draw_while_planning);
         let mut angle = 0.0_f64;
-        let (f0, d0) = (streamer.lod_thread_frames(), streamer.frames_drawn_while_planning());
-        let mut waits: Vec<f64> = Vec::new();
-        let mut ups: Vec<f64> = Vec::new();
+        let drawn_again = streamer.frames_drawn_while_planning();
+        let (mut updates, mut waits) = (Vec::new(), Vec::new());
         group.bench_function(name, |b| {
             b.iter_custom(|iterations| {
                 let start = Instant::now();
                 for _ in 0..iterations {
                     angle += 0.5;
                     let turn = DQuat::from_axis_angle(behind.up, angle.to_radians());
-                    let t = Instant::now();
+                    let update = Instant::now();
                     streamer.update(Camera { forward: turn * behind.forward, ..behind }, &mut upload);
-                    ups.push(t.elapsed().as_secs_f64() * 1e3);
+                    updates.push(update.elapsed().as_secs_f64() * 1e3);
                     waits.push(streamer.figures().times.lod_wait_ms);
                     std::thread::sleep(Duration::from_millis(4));
                 }
                 start.elapsed()
             });
         });
-        let (f1, d1) = (streamer.lod_thread_frames(), streamer.frames_drawn_while_planning());
-        ups.sort_by(f64::total_cmp);
-        waits.sort_by(f64::total_cmp);
-        let n = ups.len();
+        let spread = |values: &mut Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            let n = values.len().max(1);
+            let at = |share: usize| values.get(n * share / 100).copied().unwrap_or(0.0);
+            format!(
+                "median {:.2} ms, p95 {:.2} ms, mean {:.2} ms",
+                at(50),
+                at(95),
+                values.iter().sum::<f64>() / n as f64
+            )
+        };
         println!(
-            "{name}: taken {} missed {} drawn again {} of {n}; update median {:.2} p95 {:.2} mean {:.2}; wait median {:.2} p95 {:.2} mean {:.2}",
-            f1.0 - f0.0,
-            f1.1 - f0.1,
-            d1 - d0,
-            ups[n / 2],
-            ups[n * 95 / 100],
-            ups.iter().sum::<f64>() / n as f64,
-            waits[n / 2],
-            waits[n * 95 / 100],
-            waits.iter().sum::<f64>() / n as f64
+            "{name}: {} of {} frames drew the plan before; update {}; wait for the LOD thread {}",
+            streamer.frames_drawn_while_planning() - drawn_again,
+            updates.len(),
+            spread(&mut updates),
+            spread(&mut waits)
         );
     }
     streamer.set_draw_while_planning(true);
-    println!("frames drawn from the plan before while the next was made: {}", streamer.frames_drawn_while_planning());
     group.finish();
 }
 
