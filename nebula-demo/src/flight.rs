@@ -200,6 +200,9 @@ pub struct FlightReport {
     /// whose tree made ahead could not serve
     /// (`Streamer::lod_thread_frames`).
     pub lod_thread_frames: (u64, u64),
+    /// Frames that drew the plan before while the LOD thread made the next
+    /// (`Streamer::frames_drawn_while_planning`).
+    pub frames_drawn_while_planning: u64,
 }
 
 impl FlightReport {
@@ -278,6 +281,7 @@ impl FlightReport {
             "peak_rss_bytes": crate::headless::peak_rss_bytes(),
             "lod_thread_frames": { "made_ahead": self.lod_thread_frames.0, "missed": self.lod_thread_frames.1 },
             "planned_ahead_frames": self.frames.iter().filter(|f| f.figures.frame.times.planned_ahead).count(),
+            "frames_drawn_while_planning": self.frames_drawn_while_planning,
             "summary": {
                 "step_ms": self.spread(|f| Some(f.step_ms)),
                 // The whole frame on the frame thread, one at a time: its
@@ -394,6 +398,7 @@ pub fn fly(
         first_frame_ms,
         adapter: app.gpu().adapter_name.clone(),
         lod_thread_frames: app.streamer().lod_thread_frames(),
+        frames_drawn_while_planning: app.streamer().frames_drawn_while_planning(),
     })
 }
 
@@ -412,13 +417,24 @@ mod tests {
             FlightFrame { time_s: 0.0, wall_s: 0.0, figures, step_ms, step_cpu_ms: step_ms }
         };
         let frames = (1..=20).map(|n| frame(f64::from(n), (n > 10).then_some(2.0 * f64::from(n)))).collect();
-        let report = FlightReport { frames, first_frame_ms: 0.0, adapter: String::new(), lod_thread_frames: (0, 0) };
+        let report = FlightReport {
+            frames,
+            first_frame_ms: 0.0,
+            adapter: String::new(),
+            lod_thread_frames: (0, 0),
+            frames_drawn_while_planning: 0,
+        };
         let summary = &report.json()["summary"];
         assert_eq!(summary["step_ms"], serde_json::json!({ "median": 11.0, "p95": 20.0, "max": 20.0 }));
         assert_eq!(summary["gpu_ms"], serde_json::json!({ "median": 32.0, "p95": 40.0, "max": 40.0 }));
         assert_eq!(summary["frame_ms"], serde_json::json!({ "median": 12.0, "p95": 21.0, "max": 21.0 }));
-        let empty =
-            FlightReport { frames: Vec::new(), first_frame_ms: 0.0, adapter: String::new(), lod_thread_frames: (0, 0) };
+        let empty = FlightReport {
+            frames: Vec::new(),
+            first_frame_ms: 0.0,
+            adapter: String::new(),
+            lod_thread_frames: (0, 0),
+            frames_drawn_while_planning: 0,
+        };
         assert!(empty.json()["summary"]["step_ms"].is_null());
     }
 

@@ -1116,19 +1116,40 @@ impl ProceduralPlanet {
         unit_ridges(ridges).powi(MOUNTAIN_SHARPNESS) * mountain_mask(continents)
     }
 
-    /// H in layers at lattice point `(i, j)` of `face`: that of the LOD-0
-    /// column whose far corner it is (a node of every grid, so no grid is
-    /// interpolated for it), through the memo of the LOD tree's bound
-    /// samples when `remember`.
-    fn corner_height(&self, face: CubeFace, i: i64, j: i64, remember: bool) -> f64 {
-        let height = || self.column_height_layers(face, i - 1, j - 1);
-        if remember { self.heights.point(face, i, j, height) } else { height() }
+    /// H in layers at lattice points `corners` of `face` (each a multiple
+    /// of `spacing`, a power of two): at each, that of the LOD-0 column
+    /// whose far corner it is (a node of every grid of `spacing` or finer),
+    /// through the memo of the LOD tree's bound samples. Those the memo
+    /// does not have are summed together, so that the coarse octave grids'
+    /// nodes around them are made once, not once per corner.
+    fn corner_heights(&self, face: CubeFace, spacing: i64, corners: &[(i64, i64)]) -> Vec<f64> {
+        let mut heights: Vec<Option<f64>> = corners.iter().map(|&(i, j)| self.heights.known(face, i, j)).collect();
+        let missing: Vec<(i64, i64)> =
+            corners.iter().zip(&heights).filter(|(_, h)| h.is_none()).map(|(&c, _)| c).collect();
+        if !missing.is_empty() {
+            // A lattice point's column is the one below and left of it.
+            let points: Vec<[f64; 2]> = missing.iter().map(|&(i, j)| [(i - 1) as f64, (j - 1) as f64]).collect();
+            let sphere = self.layout.sphere();
+            let directions: Vec<nebula_math::DVec3> =
+                points.iter().map(|&[u, v]| sphere.direction(face, u + 0.5, v + 0.5)).collect();
+            let sums = self.sums_at_columns(face, &points, &directions, spacing);
+            let mut made = missing.iter().zip(sums).map(|(&(i, j), [c, r, h])| {
+                let height = self.combine(c, r, h) / self.layer_height;
+                debug_assert_eq!(height.to_bits(), self.column_height_layers(face, i - 1, j - 1).to_bits());
+                self.heights.point(face, i, j, || height)
+            });
+            for height in heights.iter_mut().filter(|h| h.is_none()) {
+                *height = made.next();
+            }
+        }
+        heights.into_iter().map(|h| h.unwrap_or(f64::NAN)).collect()
     }
 
     /// The highest H in layers at lattice points `corners` (`(i, j,
-    /// shared)`, as [`Self::corner_height`] takes them, each a multiple of
-    /// `spacing`, a power of two: their columns are nodes of the grids of
-    /// that spacing and finer), bit for bit the highest `corner_height`:
+    /// shared)`, `shared`: whether the memo of [`Self::corner_heights`] may
+    /// have it; each a multiple of `spacing`, a power of two: their columns
+    /// are nodes of the grids of that spacing and finer), bit for bit the
+    /// highest of their heights:
     /// the octaves of coarser grids come interpolated at all the corners
     /// at once ([`grid_states`]), then the three sums go octave by octave
     /// over the corners still open, and a corner whose H can no longer
@@ -1851,16 +1872,14 @@ impl ProceduralPlanet {
         let margin = slope * step;
         let (mut low, mut high) = self.heights(ranges);
         if 2.0 * margin < high - low {
-            let (mut sampled_low, mut sampled_high) = (f64::INFINITY, f64::NEG_INFINITY);
             // Whole lattice coordinates (a chunk is 32 voxels of `span`).
             let cells = i64::from(CHUNK_SIZE) * self.layout.voxel_span(column.lod);
-            for (a, b) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)] {
-                let i = i64::from(column.x) * cells + a * cells / 2;
-                let j = i64::from(column.y) * cells + b * cells / 2;
-                let h = self.corner_height(column.face, i, j, true);
-                sampled_low = sampled_low.min(h);
-                sampled_high = sampled_high.max(h);
-            }
+            let corners = [(0, 0), (2, 0), (0, 2), (2, 2), (1, 1)].map(|(a, b)| {
+                (i64::from(column.x) * cells + a * cells / 2, i64::from(column.y) * cells + b * cells / 2)
+            });
+            let heights = self.corner_heights(column.face, cells / 2, &corners);
+            let sampled_low = heights.iter().copied().fold(f64::INFINITY, f64::min);
+            let sampled_high = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             low = low.max(sampled_low - margin);
             high = high.min(sampled_high + margin);
         }
