@@ -10,7 +10,12 @@
 //! draws the frame from them) and sends back a copy of the tree with the
 //! plan; the next update takes both when the margin covers the camera that
 //! came ([`LodTree::cull_covers`]), and else updates and culls its own tree
-//! and plans itself, as it always did. What changes a tree besides the
+//! and plans itself, as it always did. An update whose outcome has not
+//! come yet (or came for a camera the view has since left) draws the plan
+//! before again while that plan's cull still covers the camera, instead of
+//! waiting, and the next request asks for the camera as many frames ahead
+//! as the last plan took ([`LodThread::ready`],
+//! `Streamer::set_draw_while_planning`). What changes a tree besides the
 //! camera (an edit's bounds, a new view, a tree started again) is done to
 //! both, in the same order: a copy made before the thread saw all of them
 //! is not taken.

@@ -1501,7 +1501,9 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// tree and the selection of this frame were made ahead, while the
     /// game drew the frame before, for a predicted camera; this update
     /// takes them when they cover the camera that came, and makes its own
-    /// when not.
+    /// when not. Where they are not made yet, the frame draws the
+    /// selection before again if it serves the camera, rather than wait
+    /// ([`Streamer::set_draw_while_planning`]).
     pub fn update(&mut self, camera: Camera, upload: &mut dyn FnMut(ChunkKey, &RenderMesh) -> H) {
         self.frame += 1;
         let start = Instant::now();
