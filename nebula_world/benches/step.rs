@@ -14,10 +14,12 @@
 //! of the new view waiting for its meshes and drawn through a stand-in or
 //! not at all (meshing is paused, so each iteration sees the same state).
 //! `step_prefetching`: that view settled, with its whole out-of-view
-//! prefetch set still to mesh. `step_turning`: that view turning 0.5° a
-//! frame, a frame being the update and 4 ms of drawing, the plan before
-//! drawn while the LOD thread makes the next (the default), against
-//! `step_turning_waiting`, which waits for each plan.
+//! prefetch set still to mesh. `step_turning`: the first view, settled
+//! and prefetched, turning 0.5° a frame, a frame being the update and 4 ms
+//! of drawing, the plan before drawn while the LOD thread makes the next
+//! (the default), against `step_turning_waiting`, which waits for each
+//! plan; `_meshing`: the same with meshing running (what comes into view
+//! is meshed as it comes; later runs find more of it meshed).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -96,6 +98,64 @@ fn bench(c: &mut Criterion) {
     group.bench_function("step_settled_planned", |b| b.iter(|| streamer.update(ahead, &mut upload)));
     streamer.set_lod_thread(true);
 
+    // The settled view (its out-of-view prefetching done) turning 0.5° a
+    // frame, each frame the update and 4 ms of drawing (a GPU's frame,
+    // while the LOD thread plans the next): the frame's whole
+    // time, drawing the plan before while the next is made
+    // (`step_turning`, the default) against waiting for each plan; printed
+    // after each, the update's own time and its wait for the LOD thread
+    // (median, 95th percentile and mean over every frame run).
+    group.sample_size(20);
+    let turns = [
+        ("step_turning", true, true),
+        ("step_turning_waiting", false, true),
+        ("step_turning_meshing", true, false),
+        ("step_turning_meshing_waiting", false, false),
+    ];
+    for (name, draw_while_planning, paused) in turns {
+        streamer.set_draw_while_planning(draw_while_planning);
+        streamer.set_meshing_paused(paused);
+        let mut angle = 0.0_f64;
+        let drawn_again = streamer.frames_drawn_while_planning();
+        let (mut updates, mut waits) = (Vec::new(), Vec::new());
+        group.bench_function(name, |b| {
+            b.iter_custom(|iterations| {
+                let start = Instant::now();
+                for _ in 0..iterations {
+                    angle += 0.5;
+                    let turn = DQuat::from_axis_angle(ahead.up, angle.to_radians());
+                    let update = Instant::now();
+                    streamer.update(Camera { forward: turn * ahead.forward, ..ahead }, &mut upload);
+                    updates.push(update.elapsed().as_secs_f64() * 1e3);
+                    waits.push(streamer.figures().times.lod_wait_ms);
+                    std::thread::sleep(Duration::from_millis(4));
+                }
+                start.elapsed()
+            });
+        });
+        let spread = |values: &mut Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            let n = values.len().max(1);
+            let at = |share: usize| values.get(n * share / 100).copied().unwrap_or(0.0);
+            format!(
+                "median {:.2} ms, p95 {:.2} ms, mean {:.2} ms",
+                at(50),
+                at(95),
+                values.iter().sum::<f64>() / n as f64
+            )
+        };
+        println!(
+            "{name}: {} of {} frames drew the plan before; update {}; wait for the LOD thread {}",
+            streamer.frames_drawn_while_planning() - drawn_again,
+            updates.len(),
+            spread(&mut updates),
+            spread(&mut waits)
+        );
+    }
+    streamer.set_draw_while_planning(true);
+    streamer.set_meshing_paused(true);
+    group.sample_size(100);
+
     let figures = streamer.figures();
     println!(
         "after: {} chunks drawn, {} held ({} MB), {} jobs ({} prefetching)",
@@ -130,53 +190,6 @@ fn bench(c: &mut Criterion) {
     println!("prefetching: {} chunks drawn, {} jobs queued", figures.chunks, figures.jobs_in_flight);
     group.bench_function("step_prefetching", |b| b.iter(|| streamer.update(behind, &mut upload)));
 
-    // Turning 0.5° a frame, each frame the update and 4 ms of drawing (a
-    // GPU's frame, while the LOD thread plans the next): the frame's whole
-    // time, drawing the plan before while the next is made
-    // (`step_turning`, the default) against waiting for each plan; printed
-    // after each, the update's own time and its wait for the LOD thread
-    // (median, 95th percentile and mean over every frame run).
-    group.sample_size(20);
-    for (name, draw_while_planning) in [("step_turning", true), ("step_turning_waiting", false)] {
-        streamer.set_draw_while_planning(draw_while_planning);
-        let mut angle = 0.0_f64;
-        let drawn_again = streamer.frames_drawn_while_planning();
-        let (mut updates, mut waits) = (Vec::new(), Vec::new());
-        group.bench_function(name, |b| {
-            b.iter_custom(|iterations| {
-                let start = Instant::now();
-                for _ in 0..iterations {
-                    angle += 0.5;
-                    let turn = DQuat::from_axis_angle(behind.up, angle.to_radians());
-                    let update = Instant::now();
-                    streamer.update(Camera { forward: turn * behind.forward, ..behind }, &mut upload);
-                    updates.push(update.elapsed().as_secs_f64() * 1e3);
-                    waits.push(streamer.figures().times.lod_wait_ms);
-                    std::thread::sleep(Duration::from_millis(4));
-                }
-                start.elapsed()
-            });
-        });
-        let spread = |values: &mut Vec<f64>| {
-            values.sort_by(f64::total_cmp);
-            let n = values.len().max(1);
-            let at = |share: usize| values.get(n * share / 100).copied().unwrap_or(0.0);
-            format!(
-                "median {:.2} ms, p95 {:.2} ms, mean {:.2} ms",
-                at(50),
-                at(95),
-                values.iter().sum::<f64>() / n as f64
-            )
-        };
-        println!(
-            "{name}: {} of {} frames drew the plan before; update {}; wait for the LOD thread {}",
-            streamer.frames_drawn_while_planning() - drawn_again,
-            updates.len(),
-            spread(&mut updates),
-            spread(&mut waits)
-        );
-    }
-    streamer.set_draw_while_planning(true);
     group.finish();
 }
 
