@@ -1568,6 +1568,20 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         self.times.lod_ms = start.elapsed().as_secs_f64() * 1e3;
         self.collect(upload);
+        // A plan made ahead that cannot serve this camera (it sees leaves
+        // the plan draws nothing for): the plan before, if it serves and
+        // no mesh collected now could change a seam it was checked
+        // against, is drawn again and the thread asked anew, rather than
+        // planning here.
+        if plan.as_ref().is_some_and(|plan| !self.serves(plan))
+            && self.draw_while_planning
+            && (self.collected.is_empty() || !self.seams.meshes_for_neighbours())
+            && self.drawn_plan_serves(&camera)
+        {
+            self.draw_again(start);
+            self.ask_ahead(&previous, &camera, last_step);
+            return;
+        }
         if self.lod_ok {
             let (plan, here) = match plan.filter(|plan| self.serves(plan)) {
                 Some(plan) => (plan, false),
