@@ -562,25 +562,14 @@ impl ProceduralPlanet {
                 value: settings.detail_amplitude,
             });
         }
-        if !settings.octave_grid.is_finite() {
-            return Err(VoxelError::NonFinite { name: "octave grid", value: settings.octave_grid });
-        }
-        if settings.octave_grid < 0.0 {
-            return Err(VoxelError::OutOfRange {
-                name: "octave grid",
-                requirement: "≥ 0",
-                value: settings.octave_grid,
-            });
-        }
-        if !settings.octave_grid_error.is_finite() {
-            return Err(VoxelError::NonFinite { name: "octave grid error", value: settings.octave_grid_error });
-        }
-        if settings.octave_grid_error < 0.0 {
-            return Err(VoxelError::OutOfRange {
-                name: "octave grid error",
-                requirement: "≥ 0",
-                value: settings.octave_grid_error,
-            });
+        for (name, value) in [("octave grid", settings.octave_grid), ("octave grid error", settings.octave_grid_error)]
+        {
+            if !value.is_finite() {
+                return Err(VoxelError::NonFinite { name, value });
+            }
+            if value < 0.0 {
+                return Err(VoxelError::OutOfRange { name, requirement: "≥ 0", value });
+            }
         }
         if !(0.0..radius / 4.0).contains(&settings.amplitude) {
             return Err(VoxelError::OutOfRange {

@@ -52,6 +52,13 @@ fn settings_are_checked() {
     assert!(matches!(bad(|s| s.detail_size = -2.0), VoxelError::OutOfRange { name: "detail size", .. }));
     assert!(matches!(bad(|s| s.detail_amplitude = f64::NAN), VoxelError::NonFinite { name: "detail amplitude", .. }));
     assert!(matches!(bad(|s| s.detail_amplitude = 900.0), VoxelError::OutOfRange { name: "detail amplitude", .. }));
+    assert!(matches!(bad(|s| s.octave_grid = f64::NAN), VoxelError::NonFinite { name: "octave grid", .. }));
+    assert!(matches!(bad(|s| s.octave_grid = -1.0), VoxelError::OutOfRange { name: "octave grid", .. }));
+    assert!(matches!(
+        bad(|s| s.octave_grid_error = f64::INFINITY),
+        VoxelError::NonFinite { name: "octave grid error", .. }
+    ));
+    assert!(matches!(bad(|s| s.octave_grid_error = -0.5), VoxelError::OutOfRange { name: "octave grid error", .. }));
     let message = bad(|s| s.radius = -3.0).to_string();
     assert!(message.contains("-3"), "{message}");
 }

@@ -1559,8 +1559,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 // serves, is drawn again and the thread asked anew, rather
                 // than planning here.
                 if missed.is_some() && !failed_ahead && self.draw_while_planning && self.drawn_plan_serves(&camera) {
-                    self.draw_again(start);
-                    self.ask_ahead(&previous, &camera, last_step);
+                    self.draw_again_and_ask(start, &previous, last_step);
                     return;
                 }
                 self.update_tree(camera);
@@ -1578,8 +1577,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             && (self.collected.is_empty() || !self.seams.meshes_for_neighbours())
             && self.drawn_plan_serves(&camera)
         {
-            self.draw_again(start);
-            self.ask_ahead(&previous, &camera, last_step);
+            self.draw_again_and_ask(start, &previous, last_step);
             return;
         }
         if self.lod_ok {
@@ -1695,6 +1693,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             mesh_errors: self.times.mesh_errors,
             ..StageTimes::default()
         };
+    }
+
+    /// [`Self::draw_again`] for the eye that came (`self.eye`, moved from
+    /// `previous`), the plan that came set aside, and the LOD thread asked
+    /// anew.
+    fn draw_again_and_ask(&mut self, start: Instant, previous: &Camera, last_step: f64) {
+        self.draw_again(start);
+        let eye = self.eye;
+        self.ask_ahead(previous, &eye, last_step);
     }
 
     /// Whether an update whose plan the LOD thread has not finished draws
