@@ -1535,9 +1535,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 outcome.plan = None;
             }
         }
-        let previous = std::mem::replace(&mut self.eye, camera);
-        let step = previous.position.distance(camera.position);
-        let last_step = std::mem::replace(&mut self.last_step, step);
+        let (previous, last_step) = self.move_eye(camera);
         // The tree made ahead for this frame, when its cull covers the
         // camera that came; else the frame thread updates its own.
         let mut plan = None;
@@ -1650,26 +1648,27 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if self.serve_any_camera {
             return true;
         }
-        let fov = self.tree.settings().fov_y_degrees;
-        if camera.check().is_err()
-            || self.lod_thread.as_ref().is_none_or(|thread| thread.commands() != drawn.commands)
-            || self.voxels.layer_view(camera.position) != self.view
-            || !cull_reaches((drawn.camera, drawn.margin), fov, camera)
-        {
-            return false;
-        }
-        let frustum = nebula_lod::Frustum::new(camera, fov);
-        let horizon = nebula_lod::Horizon::new(camera.position, self.tree.min_surface_radius());
-        drawn.unseen.iter().all(|bounds| frustum.excludes(bounds) || horizon.hides(bounds))
+        camera.check().is_ok()
+            && self.lod_thread.as_ref().is_some_and(|thread| thread.commands() == drawn.commands)
+            && self.voxels.layer_view(camera.position) == self.view
+            && cull_reaches((drawn.camera, drawn.margin), self.tree.settings().fov_y_degrees, camera)
+            && self.sees_none_of(camera, &drawn.unseen)
     }
 
     /// This frame draws the draw list before for `camera`
     /// ([`Self::drawn_plan_serves`]) while the LOD thread plans: nothing is
     /// collected or planned.
     fn draw_again_for(&mut self, camera: Camera, start: Instant) {
-        let previous = std::mem::replace(&mut self.eye, camera);
-        self.last_step = previous.position.distance(camera.position);
+        self.move_eye(camera);
         self.draw_again(start);
+    }
+
+    /// The eye is `camera` now: returns the one before and the step before
+    /// it (what the prediction of the next goes by).
+    fn move_eye(&mut self, camera: Camera) -> (Camera, f64) {
+        let previous = std::mem::replace(&mut self.eye, camera);
+        let step = previous.position.distance(camera.position);
+        (previous, std::mem::replace(&mut self.last_step, step))
     }
 
     /// The draw list before, its walls turned for the eye that came (which
@@ -1847,12 +1846,18 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     /// of the leaves in view the plan draws nothing for (as the tree's
     /// narrowed cull tells what it sees).
     fn serves(&self, plan: &Plan<H>) -> bool {
-        if plan.unseen.is_empty() {
+        self.sees_none_of(&self.eye, &plan.unseen)
+    }
+
+    /// Whether `camera` sees none of `unseen` (a plan's leaves in view it
+    /// draws nothing for): each outside its frustum or under its horizon.
+    fn sees_none_of(&self, camera: &Camera, unseen: &[NodeBounds]) -> bool {
+        if unseen.is_empty() {
             return true;
         }
-        let frustum = nebula_lod::Frustum::new(&self.eye, self.tree.settings().fov_y_degrees);
-        let horizon = nebula_lod::Horizon::new(self.eye.position, self.tree.min_surface_radius());
-        plan.unseen.iter().all(|bounds| frustum.excludes(bounds) || horizon.hides(bounds))
+        let frustum = nebula_lod::Frustum::new(camera, self.tree.settings().fov_y_degrees);
+        let horizon = nebula_lod::Horizon::new(camera.position, self.tree.min_surface_radius());
+        unseen.iter().all(|bounds| frustum.excludes(bounds) || horizon.hides(bounds))
     }
 
     /// Plans this frame's selection on the frame thread (no plan made
