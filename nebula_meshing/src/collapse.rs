@@ -151,7 +151,10 @@ impl FlatInteriors {
         self.candidates.clear();
         self.candidates.extend((0..vertices as u32).filter(|&v| match mesh.sources[v as usize] {
             VertexSource::Surface { local, side } => {
-                local.iter().all(|&c| c > 0 && c < last) && flat_around(local, side)
+                // Strictly inside on every axis (without a branch a
+                // coordinate: most points of a rough chunk are inside).
+                let inside = local.iter().fold(true, |inside, &c| inside & (((c - 1) as u32) < (last - 1) as u32));
+                inside && flat_around(local, side)
             }
             _ => false,
         }));

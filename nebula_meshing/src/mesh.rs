@@ -84,6 +84,7 @@ pub struct OutlineEdge {
 
 /// Where a vertex came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
 pub(crate) enum VertexSource {
     /// A lattice point of the chunk (local coordinates at the chunk's LOD,
     /// each in `0..=32`, or beyond for the far end of a coarse edge a

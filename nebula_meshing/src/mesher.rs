@@ -53,7 +53,7 @@ use block_mesh::{OrientedBlockFace, RIGHT_HANDED_Y_UP_CONFIG, UnorientedQuad};
 use nebula_math::{Cubesphere, DVec3, FaceDirection, LatticePoint, Vec3};
 use nebula_voxel::{
     CHUNK_SIZE, ChunkKey, ChunkLayout, ChunkVoxels, PADDED_CHUNK_SIZE, PADDED_CHUNK_VOLUME, PADDED_COLUMNS,
-    PaddedChunkShape, Voxel,
+    PADDED_ROWS, PaddedChunkShape, Voxel,
 };
 
 use crate::MeshError;
@@ -462,25 +462,29 @@ impl ChunkMesher {
         if self.collapse_flat_interiors {
             let moving = [0, 1, 2, 3].map(|k| self.dense_sides[k] || self.stitch_coarser[k].is_some());
             // The four cells around the point in its plane: solid of one
-            // material behind the face, not solid in front (read straight
-            // from the padded array: a rough chunk asks this of most of its
-            // vertices).
+            // material behind the face, not solid in front. A rough chunk
+            // asks this of most of its vertices, and most fail on the
+            // faces alone (`faces_around`, from the solid rows: the voxel
+            // reads of the cells were a tenth of meshing a mountain chunk);
+            // the materials are read from the padded array after.
             let slice = voxels.as_slice();
             let stride = [1i32, PADDED_CHUNK_SIZE as i32, (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE) as i32];
+            let rows = &*self.greedy.rows;
             let flat_around = |local: [i32; 3], side: FaceDirection| {
+                if !faces_around(rows, local, side) {
+                    return false;
+                }
                 let axis = side.axis();
                 let (p, q) = ((axis + 1) % 3, (axis + 2) % 3);
                 // The cell at the point's padded coordinates is the one on
                 // the far side of it along every axis.
                 let at = (local[0] + 1) * stride[0] + (local[1] + 1) * stride[1] + (local[2] + 1) * stride[2];
                 debug_assert_eq!(at as u32, PaddedChunkShape::linearize(local.map(|c| (c + 1) as u32)));
-                let (behind, front) = if side.is_positive() { (-stride[axis], 0) } else { (0, -stride[axis]) };
-                let first = slice[(at + behind - stride[p] - stride[q]) as usize];
-                [0, stride[p], stride[q], stride[p] + stride[q]].iter().all(|&across| {
-                    let cell = at - stride[p] - stride[q] + across;
-                    let (solid, open) = (slice[(cell + behind) as usize], slice[(cell + front) as usize]);
-                    solid.is_solid() && !open.is_solid() && solid.material() == first.material()
-                })
+                let behind = at - stride[p] - stride[q] - if side.is_positive() { stride[axis] } else { 0 };
+                let first = slice[behind as usize].material();
+                [stride[p], stride[q], stride[p] + stride[q]]
+                    .iter()
+                    .all(|&across| slice[(behind + across) as usize].material() == first)
             };
             self.flat_interiors.collapse(mesh, moving, flat_around);
         }
@@ -1163,6 +1167,43 @@ fn split_by_sky(
         false
     });
     group.append(&mut runs);
+}
+
+/// Whether the four voxel faces around lattice point `local` (each
+/// coordinate in `1..LAST`) looking towards `side` are all there: solid
+/// behind the point's plane, not solid in front, read from the chunk's
+/// [`ChunkVoxels::solid_rows`] (`rows`, bit x of row `y + 34·z`).
+#[inline(always)]
+fn faces_around(rows: &[u64; PADDED_ROWS], local: [i32; 3], side: FaceDirection) -> bool {
+    let axis = side.axis();
+    // Padded coordinates of the point's far cells; the near ones are one
+    // less on each axis but the normal's.
+    let [x, y, z] = local.map(|c| (c + 1) as usize);
+    let (behind, front) = if side.is_positive() { (-1, 0) } else { (0, -1) };
+    let row = |y: usize, z: usize| rows[y + PADDED_CHUNK_SIZE as usize * z];
+    let (solid, open) = match axis {
+        // Two cells of each row: bits x − 1 and x.
+        1 => {
+            let (yb, yf) = (y.wrapping_add_signed(behind), y.wrapping_add_signed(front));
+            let pair = |bits: u64| (bits >> (x - 1)) & 3;
+            (pair(row(yb, z - 1)) & pair(row(yb, z)), pair(row(yf, z - 1)) | pair(row(yf, z)))
+        }
+        2 => {
+            let (zb, zf) = (z.wrapping_add_signed(behind), z.wrapping_add_signed(front));
+            let pair = |bits: u64| (bits >> (x - 1)) & 3;
+            (pair(row(y - 1, zb)) & pair(row(y, zb)), pair(row(y - 1, zf)) | pair(row(y, zf)))
+        }
+        // Faces across x: one bit of each of the four rows, behind and in
+        // front.
+        _ => {
+            let (xb, xf) = (x.wrapping_add_signed(behind), x.wrapping_add_signed(front));
+            let cells = [row(y - 1, z - 1), row(y, z - 1), row(y - 1, z), row(y, z)];
+            let all = cells.iter().fold(1, |all, bits| all & (bits >> xb));
+            let any = cells.iter().fold(0, |any, bits| any | (bits >> xf));
+            (all & 1 | (all & 1) << 1, any & 1)
+        }
+    };
+    solid == 3 && open == 0
 }
 
 /// Whether lattice point `local`, on a boundary plane, is in the canonical

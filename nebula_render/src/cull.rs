@@ -67,16 +67,15 @@ pub(crate) struct MeshBox {
 impl MeshBox {
     /// The box of `mesh`'s vertices (empty meshes get a point).
     pub(crate) fn of(mesh: &RenderMesh) -> Self {
-        let targets = || mesh.vertices.iter().map(nebula_meshing::RenderVertex::target_position);
-        let count = mesh.vertices.len().max(1) as f64;
-        let origin = targets().fold(DVec3::ZERO, |sum, p| sum + p) / count;
+        let decoded = mesh.targets_and_offsets();
+        let count = decoded.len().max(1) as f64;
+        let origin = decoded.iter().fold(DVec3::ZERO, |sum, &(target, _)| sum + target) / count;
         // The axes `relative` makes from the stored (f32) vertical.
         let up = origin.normalize_or(DVec3::Z).as_vec3();
         let axes = box_axes(up.as_dvec3());
         let (mut low, mut high) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for vertex in &mesh.vertices {
-            let target = vertex.target_position();
-            for p in [target, target + vertex.offset_metres().as_dvec3()] {
+        for &(target, offset) in &decoded {
+            for p in [target, target + offset.as_dvec3()] {
                 let local = DVec3::from_array(axes.map(|axis| axis.dot(p - origin)));
                 low = low.min(local);
                 high = high.max(local);
