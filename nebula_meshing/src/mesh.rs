@@ -83,6 +83,11 @@ pub struct OutlineEdge {
 }
 
 /// Where a vertex came from.
+///
+/// `repr(u32)`: with Rust's own layout (16 bytes) the mesher built a
+/// `Surface` from its lattice point stored in two pieces and read it back
+/// across them, a store-forwarding stall a vertex (a quarter of making one);
+/// laid out as C does (20 bytes), the point is copied whole.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
 pub(crate) enum VertexSource {

@@ -254,19 +254,24 @@ impl RenderVertex {
     /// f16 parts, summed in f64).
     #[must_use]
     pub fn target_position(&self) -> DVec3 {
-        Vec3::from_array(self.position_high).as_dvec3() + Vec3::from_array(self.target_low.map(f16::to_f32)).as_dvec3()
+        self.target_with_low(Vec3::from_array(self.target_low.map(f16::to_f32)))
     }
 
     /// World position − morph target, metres, as the GPU reads it: the f16
     /// offset times 2^LOD (exact in f32).
     #[must_use]
     pub fn offset_metres(&self) -> Vec3 {
-        Vec3::from_array(self.offset.map(f16::to_f32)) * self.offset_scale()
+        self.offset_from(Vec3::from_array(self.offset.map(f16::to_f32)))
     }
 
-    /// 2^LOD, what the f16 offset is scaled by (exact in f32).
-    fn offset_scale(&self) -> f32 {
-        f32::from_bits((127 + (self.packed >> OFFSET_LOD_SHIFT)) << 23)
+    /// [`Self::target_position`] from `target_low` already in f32.
+    fn target_with_low(&self, low: Vec3) -> DVec3 {
+        Vec3::from_array(self.position_high).as_dvec3() + low.as_dvec3()
+    }
+
+    /// [`Self::offset_metres`] from `offset` already in f32: times 2^LOD.
+    fn offset_from(&self, offset: Vec3) -> Vec3 {
+        offset * f32::from_bits((127 + (self.packed >> OFFSET_LOD_SHIFT)) << 23)
     }
 
     /// The material id.
@@ -360,9 +365,8 @@ impl RenderMesh {
         let mut floats = vec![0.0_f32; halves.len()];
         halves.convert_to_f32_slice(&mut floats);
         let decoded = self.vertices.iter().zip(floats.chunks_exact(6)).map(|(vertex, parts)| {
-            let target =
-                Vec3::from_array(vertex.position_high).as_dvec3() + Vec3::new(parts[3], parts[4], parts[5]).as_dvec3();
-            (target, Vec3::new(parts[0], parts[1], parts[2]) * vertex.offset_scale())
+            let (offset, low) = (Vec3::new(parts[0], parts[1], parts[2]), Vec3::new(parts[3], parts[4], parts[5]));
+            (vertex.target_with_low(low), vertex.offset_from(offset))
         });
         let decoded: Vec<(DVec3, Vec3)> = decoded.collect();
         debug_assert!(
