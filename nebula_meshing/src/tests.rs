@@ -1031,6 +1031,39 @@ fn a_fully_morphed_chunk_is_its_parent() {
 }
 
 #[test]
+fn a_render_mesh_decoded_in_one_batch_gives_each_vertex_its_target_and_offset() {
+    // `RenderMesh::targets_and_offsets` (what a renderer's cull boxes
+    // read) against the f64 truth of the chunk mesh it came from, and bit
+    // for bit against the one-value methods, at LODs from 0 to the
+    // coarsest (meshes without skirts: vertex for vertex).
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+    let max_lod = earth.layout().max_lod();
+    let mut state = 0x0ff5_e7_u64;
+    let mut unit = || nebula_math::unit_random(&mut state);
+    let mut checked = 0;
+    for lod in [0, 2, 5, 9, max_lod] {
+        let column = random_column(earth.layout(), CubeFace::ALL[usize::from(lod) % 6], lod, &mut unit);
+        for mesh in column_meshes(&earth, column) {
+            let render = mesh.render_mesh();
+            let decoded = render.targets_and_offsets();
+            assert_eq!((decoded.len(), render.vertices.len()), (mesh.world.len(), mesh.world.len()));
+            for (i, (&(target, offset), vertex)) in decoded.iter().zip(&render.vertices).enumerate() {
+                assert_eq!(target.to_array().map(f64::to_bits), vertex.target_position().to_array().map(f64::to_bits));
+                assert_eq!(offset.to_array().map(f32::to_bits), vertex.offset_metres().to_array().map(f32::to_bits));
+                let truth = mesh.world[i] - mesh.morph_world[i];
+                let target_error = (target - mesh.morph_world[i]).length();
+                let target_bound = 2e-4 + mesh.morph_world[i].length() * 2f64.powi(-23);
+                assert!(target_error <= target_bound, "LOD {lod}: target {target_error} m off");
+                let offset_error = (offset.as_dvec3() - truth).length();
+                assert!(offset_error <= 1e-4 + truth.length() / 2048.0, "LOD {lod}: offset {offset_error} m off");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 1_000, "too few vertices: {checked}");
+}
+
+#[test]
 fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() {
     // `RenderVertex` holds the morph target's low part and the vertex's
     // offset from its target as f16, the offset scaled by 2^-LOD. Drawn
