@@ -1038,7 +1038,7 @@ fn a_render_mesh_decoded_in_one_batch_gives_each_vertex_its_target_and_offset() 
     // coarsest (meshes without skirts: vertex for vertex).
     let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
     let max_lod = earth.layout().max_lod();
-    let mut state = 0x0ff5_e7_u64;
+    let mut state = 0x0ff_5e7_u64;
     let mut unit = || nebula_math::unit_random(&mut state);
     let mut checked = 0;
     for lod in [0, 2, 5, 9, max_lod] {
