@@ -1031,39 +1031,6 @@ fn a_fully_morphed_chunk_is_its_parent() {
 }
 
 #[test]
-fn a_render_mesh_decoded_in_one_batch_gives_each_vertex_its_target_and_offset() {
-    // `RenderMesh::targets_and_offsets` (what a renderer's cull boxes
-    // read) against the f64 truth of the chunk mesh it came from, and bit
-    // for bit against the one-value methods, at LODs from 0 to the
-    // coarsest (meshes without skirts: vertex for vertex).
-    let earth = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
-    let max_lod = earth.layout().max_lod();
-    let mut state = 0x0ff_5e7_u64;
-    let mut unit = || nebula_math::unit_random(&mut state);
-    let mut checked = 0;
-    for lod in [0, 2, 5, 9, max_lod] {
-        let column = random_column(earth.layout(), CubeFace::ALL[usize::from(lod) % 6], lod, &mut unit);
-        for mesh in column_meshes(&earth, column) {
-            let render = mesh.render_mesh();
-            let decoded = render.targets_and_offsets();
-            assert_eq!((decoded.len(), render.vertices.len()), (mesh.world.len(), mesh.world.len()));
-            for (i, (&(target, offset), vertex)) in decoded.iter().zip(&render.vertices).enumerate() {
-                assert_eq!(target.to_array().map(f64::to_bits), vertex.target_position().to_array().map(f64::to_bits));
-                assert_eq!(offset.to_array().map(f32::to_bits), vertex.offset_metres().to_array().map(f32::to_bits));
-                let truth = mesh.world[i] - mesh.morph_world[i];
-                let target_error = (target - mesh.morph_world[i]).length();
-                let target_bound = 2e-4 + mesh.morph_world[i].length() * 2f64.powi(-23);
-                assert!(target_error <= target_bound, "LOD {lod}: target {target_error} m off");
-                let offset_error = (offset.as_dvec3() - truth).length();
-                assert!(offset_error <= 1e-4 + truth.length() / 2048.0, "LOD {lod}: offset {offset_error} m off");
-                checked += 1;
-            }
-        }
-    }
-    assert!(checked > 1_000, "too few vertices: {checked}");
-}
-
-#[test]
 fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() {
     // `RenderVertex` holds the morph target's low part and the vertex's
     // offset from its target as f16, the offset scaled by 2^-LOD. Drawn
@@ -1071,6 +1038,11 @@ fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() 
     // within 0.2 mm + 2^-11 of its offset + 2^-21 of its distance (the f32
     // arithmetic) of the f64 truth, at LODs from 0 to the coarsest. The
     // control: the same offsets unscaled overflow f16 at the coarse LODs.
+    // The render mesh's targets and offsets decoded in one batch
+    // (`RenderMesh::targets_and_offsets`, what a renderer's cull boxes
+    // read) are the one-value methods' bit for bit, and within their f16
+    // bounds of the f64 truth (the meshes have no skirts: the render mesh
+    // is the chunk mesh vertex for vertex).
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
     let max_lod = earth.layout().max_lod();
     let mut state = 0x51f1_5eed_u64;
@@ -1085,6 +1057,25 @@ fn half_float_low_parts_keep_every_drawn_vertex_within_its_bound_at_every_lod() 
                 let eye = centre + DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * reach;
                 let frame = FrameDraw::new(eye, 1000.0, 1.0, false);
                 let draw = mesh.chunk_draw(0.0);
+                let render = mesh.render_mesh();
+                let decoded = render.targets_and_offsets();
+                assert_eq!((decoded.len(), render.vertices.len()), (mesh.world.len(), mesh.world.len()));
+                for (i, (&(target, offset), vertex)) in decoded.iter().zip(&render.vertices).enumerate() {
+                    assert_eq!(
+                        target.to_array().map(f64::to_bits),
+                        vertex.target_position().to_array().map(f64::to_bits)
+                    );
+                    assert_eq!(
+                        offset.to_array().map(f32::to_bits),
+                        vertex.offset_metres().to_array().map(f32::to_bits)
+                    );
+                    let target_error = (target - mesh.morph_world[i]).length();
+                    let target_bound = 2e-4 + mesh.morph_world[i].length() * 2f64.powi(-23);
+                    assert!(target_error <= target_bound, "LOD {lod}: target {target_error} m off");
+                    let decoded_offset_error = (offset.as_dvec3() - (mesh.world[i] - mesh.morph_world[i])).length();
+                    let offset_bound = 1e-4 + (mesh.world[i] - mesh.morph_world[i]).length() / 2048.0;
+                    assert!(decoded_offset_error <= offset_bound, "LOD {lod}: offset {decoded_offset_error} m off");
+                }
                 for (i, vertex) in mesh.render_vertices().iter().enumerate() {
                     let offset = mesh.world[i] - mesh.morph_world[i];
                     let truth = mesh.world[i] - eye;
