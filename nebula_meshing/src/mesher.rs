@@ -143,9 +143,10 @@ pub struct ChunkMesher {
     plugs: Vec<u64>,
     /// The chunk `plugs` was made for (taken by the next meshing).
     plugs_for: Option<ChunkKey>,
-    /// [`PLUG_MARGIN`], except where a test plugs up to the boundary to see
-    /// the seams open.
-    pub(crate) plug_margin: u32,
+    /// Whether [`ChunkMesher::plug_dark_air`] plugs the padding too (always,
+    /// except where a test plugs the chunk's own voxels alone to see the
+    /// seams open).
+    pub(crate) plug_padding: bool,
     /// Scratch of the flat regions' inner vertices' removal.
     pub(crate) flat_interiors: FlatInteriors,
     /// Whether those are removed (tests compare with them kept).
@@ -162,12 +163,6 @@ struct VertexKind {
     material: u8,
     on_face: bool,
 }
-
-/// Voxels left open along every side of a chunk by
-/// [`ChunkMesher::plug_dark_air`]: the layers both chunks of a boundary
-/// read (one each side) stay as the source has them, so neighbours agree
-/// on the faces and vertices there whatever either plugs.
-pub(crate) const PLUG_MARGIN: u32 = 1;
 
 impl Default for ChunkMesher {
     fn default() -> Self {
@@ -203,88 +198,85 @@ impl ChunkMesher {
             all_lit: false,
             plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             plugs_for: None,
-            plug_margin: PLUG_MARGIN,
+            plug_padding: true,
             flat_interiors: FlatInteriors::default(),
             collapse_flat_interiors: true,
         }
     }
 
     /// Fills the chunk's dark air (cave air under its column's
-    /// [`ChunkVoxels::sky_floors`], one voxel or more in from every side
-    /// of the chunk) with the rock under it, and remembers it
-    /// for the next meshing of this chunk: its faces towards the open air
-    /// are then dark, as the cave behind them would be
-    /// ([`ChunkMesher`]'s `sky_light`). What a cave looks like from afar,
-    /// at a fraction of its triangles: seen from outside, a cave's inside
-    /// shows only through its mouths, as a dark hole; its walls under the
-    /// ground are what most of its triangles are. Returns how many voxels
-    /// were filled.
+    /// [`ChunkVoxels::sky_floors`]), padding included, with stone, and
+    /// remembers it for the next meshing of this chunk: its
+    /// faces towards the open air are then dark, as the cave behind them
+    /// would be ([`ChunkMesher`]'s `sky_light`). What a cave looks like
+    /// from afar, at a fraction of its triangles: seen from outside, a
+    /// cave's inside shows only through its mouths, as a dark hole; its
+    /// walls under the ground are what most of its triangles are. Returns
+    /// how many voxels were filled.
+    ///
+    /// Why the padding too: whether a voxel is dark is its column's own
+    /// property (solid somewhere above it, which a source that knows what
+    /// lies over a chunk records, [`ChunkVoxels::set_covered_above`], for
+    /// every column; without a record the two layers a chunk shares with
+    /// each radial neighbour stay open), so
+    /// two chunks of one LOD that both plug fill the voxels they share
+    /// alike, and the faces and vertices on their boundary agree; one
+    /// material for every plug, because the rock a chunk holds of a column
+    /// is not its radial neighbour's, and quads and boundary vertices
+    /// split where materials change. (Plugs
+    /// kept one voxel off every side before: every tunnel crossing a side
+    /// left a voxel-deep stub of walls on both chunks, 40 % of a narrow
+    /// lens's triangles at LOD 1.) A chunk of another LOD shares no
+    /// voxels; the skirts, as deep as the deepest cave, cover a tunnel's
+    /// cross-section there, as they do where a coarse chunk is solid.
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
         self.plugs_for = None;
         voxels.solid_rows(&mut self.greedy.rows);
         // Most chunks have no dark air: nothing to fill, and the meshing
         // then takes them as unplugged (open ground lit without looking).
-        if voxels.dark_air_columns_from(&self.greedy.rows).iter().all(|&columns| columns == 0) {
+        let dark_columns = voxels.dark_air_columns_from(&self.greedy.rows);
+        if dark_columns.iter().all(|&columns| columns == 0) {
             return 0;
         }
         self.plugs_for = Some(voxels.key());
         // Plugs lie under the floors, so the meshing reuses them.
         self.sky_floors = voxels.sky_floors_from(&self.greedy.rows);
         let floors = self.sky_floors;
-        let (low, high) = (1 + self.plug_margin, PADDED_CHUNK_SIZE - 1 - self.plug_margin);
+        let (low, high) = if self.plug_padding { (0, PADDED_CHUNK_SIZE) } else { (1, PADDED_CHUNK_SIZE - 1) };
+        // Radially, a chunk knows its top layers dark only from what its
+        // source recorded above it; a source that records nothing (a
+        // world a game brings may not) leaves the two layers shared with
+        // each radial neighbour as they are, as both neighbours then do.
+        let (bottom, top) = if !self.plug_padding || voxels.covered_above((0, 0)).is_some() {
+            (low, high)
+        } else {
+            (2, PADDED_CHUNK_SIZE - 2)
+        };
         let slice = voxels.as_mut_slice();
-        // The columns with air under their floor (within the margin): the
-        // only ones with anything to fill, found row by row as the voxels
-        // are stored (the rows vectorise; most chunks have none, and
-        // walking each column up to its floor was most of the cost).
-        let mut dark = [0_u8; PADDED_COLUMNS];
-        let (start, end) = (low as usize, high as usize);
-        for z in start..end {
-            let columns = z * PADDED_CHUNK_SIZE as usize;
-            let (dark, floors) = (&mut dark[columns + start..columns + end], &floors[columns + start..columns + end]);
-            for y in start..end {
-                let row = PaddedChunkShape::linearize([0, y as u32, z as u32]) as usize;
-                let voxels = &slice[row + start..row + end];
-                for ((dark, floor), voxel) in dark.iter_mut().zip(floors).zip(voxels) {
-                    *dark |= u8::from(voxel.material() == Voxel::AIR.material()) & u8::from((y as u8) < *floor);
-                }
-            }
-        }
         let mut filled = 0;
         for z in low..high {
-            for x in low..high {
-                if dark[(x + PADDED_CHUNK_SIZE * z) as usize] == 0 {
-                    continue;
-                }
-                let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(high);
-                // The rock of the nearest solid voxel below, else of the
-                // nearest above (the roof over dark air at the chunk's foot).
-                let mut rock = None;
-                for y in 0..floor {
+            // The columns with air under their floor: the only ones with
+            // anything to fill (most chunks have none, and walking each
+            // column up to its floor was most of the cost).
+            let mut dark = dark_columns[z as usize] & ((1_u64 << high) - (1_u64 << low));
+            while dark != 0 {
+                let x = dark.trailing_zeros();
+                dark &= dark - 1;
+                let floor = u32::from(floors[(x + PADDED_CHUNK_SIZE * z) as usize]).min(top);
+                for y in bottom..floor {
                     let index = PaddedChunkShape::linearize([x, y, z]) as usize;
-                    let voxel = slice[index];
-                    if voxel.is_solid() {
-                        rock = Some(voxel);
+                    if slice[index].is_solid() {
                         continue;
                     }
-                    if y < low {
-                        continue;
-                    }
-                    if rock.is_none() {
-                        rock = (y..PADDED_CHUNK_SIZE)
-                            .map(|above| slice[PaddedChunkShape::linearize([x, above, z]) as usize])
-                            .find(|voxel| voxel.is_solid());
-                    }
-                    let Some(fill) = rock else { break };
-                    slice[index] = fill;
+                    slice[index] = Voxel::STONE;
                     self.plugs[index / 64] |= 1 << (index % 64);
                     filled += 1;
                 }
             }
         }
         if filled == 0 {
-            // Dark air only in the margin: as unplugged.
+            // Dark air only where these plugs do not reach: as unplugged.
             self.plugs_for = None;
         }
         filled
@@ -845,7 +837,7 @@ impl ChunkMesher {
     /// `split_by_sky`) into the dark, and open ground is never darkened. A
     /// function of the point, the side and the voxels around it (padding
     /// included) alone, so the chunks sharing a vertex give it the same
-    /// light (plugs keep off the layers they share).
+    /// light (both plug the voxels they share alike, `plug_dark_air`).
     fn sky_light(&self, voxels: &ChunkVoxels, local: [i32; 3], side: FaceDirection) -> u8 {
         let axis = side.axis();
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
