@@ -225,7 +225,7 @@ impl ChunkMesher {
     /// is not its radial neighbour's, and quads and boundary vertices
     /// split where materials change. (Plugs
     /// kept one voxel off every side before: every tunnel crossing a side
-    /// left a voxel-deep stub of walls on both chunks, 40 % of a narrow
+    /// left a voxel-deep stub of walls on both chunks, 53 % of a narrow
     /// lens's triangles at LOD 1.) A chunk of another LOD shares no
     /// voxels; the skirts, as deep as the deepest cave, cover a tunnel's
     /// cross-section there, as they do where a coarse chunk is solid.
