@@ -143,10 +143,8 @@ pub struct ChunkMesher {
     plugs: Vec<u64>,
     /// The chunk `plugs` was made for (taken by the next meshing).
     plugs_for: Option<ChunkKey>,
-    /// Whether [`ChunkMesher::plug_dark_air`] plugs the padding too (always,
-    /// except where a test plugs the chunk's own voxels alone to see the
-    /// seams open).
-    pub(crate) plug_padding: bool,
+    /// How far [`ChunkMesher::plug_dark_air`] reaches towards the sides.
+    pub(crate) plug_reach: PlugReach,
     /// Scratch of the flat regions' inner vertices' removal.
     pub(crate) flat_interiors: FlatInteriors,
     /// Whether those are removed (tests compare with them kept).
@@ -157,6 +155,24 @@ pub struct ChunkMesher {
 /// material `material`; `on_face` when the point is on the outline of
 /// such a face of the chunk (so a cell in front of it is air), not only
 /// on a stitch's zip.
+/// How far towards a chunk's horizontal sides [`ChunkMesher::plug_dark_air`]
+/// fills dark air.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum PlugReach {
+    /// The whole padded chunk: chunks of one LOD that both plug fill the
+    /// voxels they share alike (what streaming's skirted meshes take).
+    Padding,
+    /// One voxel off every horizontal side: the chunk's boundary layers
+    /// and padding stay as the source has them, for stitched seams, where
+    /// a finer neighbour reads this chunk's boundary layer from the source
+    /// and closes the seam against it ([`crate::stitch`]).
+    OffSides,
+    /// The chunk's own voxels alone, not its padding: a test's control
+    /// (the seams open).
+    #[cfg(test)]
+    OwnVoxels,
+}
+
 #[derive(Clone, Copy, Debug)]
 struct VertexKind {
     side: FaceDirection,
@@ -198,7 +214,7 @@ impl ChunkMesher {
             all_lit: false,
             plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             plugs_for: None,
-            plug_padding: true,
+            plug_reach: PlugReach::Padding,
             flat_interiors: FlatInteriors::default(),
             collapse_flat_interiors: true,
         }
@@ -243,15 +259,21 @@ impl ChunkMesher {
         // Plugs lie under the floors, so the meshing reuses them.
         self.sky_floors = voxels.sky_floors_from(&self.greedy.rows);
         let floors = self.sky_floors;
-        let (low, high) = if self.plug_padding { (0, PADDED_CHUNK_SIZE) } else { (1, PADDED_CHUNK_SIZE - 1) };
+        let (low, high) = match self.plug_reach {
+            PlugReach::Padding => (0, PADDED_CHUNK_SIZE),
+            PlugReach::OffSides => (2, PADDED_CHUNK_SIZE - 2),
+            #[cfg(test)]
+            PlugReach::OwnVoxels => (1, PADDED_CHUNK_SIZE - 1),
+        };
         // Radially, a chunk knows its top layers dark only from what its
         // source recorded above it; a source that records nothing (a
         // world a game brings may not) leaves the two layers shared with
         // each radial neighbour as they are, as both neighbours then do.
-        let (bottom, top) = if !self.plug_padding || voxels.covered_above((0, 0)).is_some() {
-            (low, high)
-        } else {
-            (2, PADDED_CHUNK_SIZE - 2)
+        let (bottom, top) = match self.plug_reach {
+            #[cfg(test)]
+            PlugReach::OwnVoxels => (low, high),
+            _ if voxels.covered_above((0, 0)).is_some() => (0, PADDED_CHUNK_SIZE),
+            _ => (2, PADDED_CHUNK_SIZE - 2),
         };
         let slice = voxels.as_mut_slice();
         let mut filled = 0;

@@ -6,6 +6,7 @@ use nebula_voxel::{ChunkKey, ChunkVoxels, VoxelSource};
 use rayon::prelude::*;
 
 use crate::mesh::ChunkMesh;
+use crate::mesher::PlugReach;
 use crate::seams::generate_skirts;
 use crate::stitch::{StitchedSide, stitch_padding};
 use crate::{ChunkMesher, MeshError, constrain_edge_vertices, skirt_depth};
@@ -138,6 +139,9 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     let voxels = buffer.voxels.get_or_insert_with(|| ChunkVoxels::new(key));
     source.fill_chunk(key, voxels)?;
     if options.plug_dark_air_from_lod.is_some_and(|lod| key.lod >= lod) {
+        // Stitched seams read a neighbour's boundary layer from the source:
+        // the plugs keep off it.
+        buffer.mesher.plug_reach = if options.stitch { PlugReach::OffSides } else { PlugReach::Padding };
         buffer.mesher.plug_dark_air(voxels);
     }
     let layout = source.layout();

@@ -433,7 +433,7 @@ fn pair_seam_defects(
     for (key, offset) in [(key_a, 0), (key_b, SIDE)] {
         let mut voxels = pair_chunk(key, voxel_at, axis, offset as usize, plug.is_none_or(|p| p.covered_record));
         if let Some(Plugging { padding, .. }) = plug {
-            mesher.plug_padding = padding;
+            mesher.plug_reach = if padding { mesher::PlugReach::Padding } else { mesher::PlugReach::OwnVoxels };
             mesher.plug_dark_air(&mut voxels);
         }
         let mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
@@ -1573,6 +1573,63 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
     assert!(chunks >= 12, "only {chunks} chunks with caves found");
     assert!(2 * plugged_triangles < open_triangles, "{plugged_triangles} of {open_triangles}");
     assert!(10 * lit_plugged >= 9 * lit_open, "{lit_plugged} of {lit_open} lit vertices left");
+}
+
+/// For stitched seams ([`MeshOptions::STITCHED`] plugs from LOD 1 too) the
+/// plugs keep off the horizontal sides: a finer neighbour reads this
+/// chunk's boundary layer from the source and closes the seam against it,
+/// so those voxels must be as the source has them. Real Earth cave chunks
+/// at LODs 1–3; the control, plugged to the padding as skirted streaming
+/// plugs, changes voxels there.
+#[test]
+fn stitched_plugs_leave_the_boundary_layers_as_the_source_has_them() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
+    let layout = earth.layout();
+    let mut state = 0x57_1c4e_u64;
+    let mut mesher = ChunkMesher::new();
+    let (mut chunks, mut control_changed) = (0, 0);
+    let on_side = |index: usize| {
+        let (x, z) = (index as u32 % PADDED_CHUNK_SIZE, index as u32 / (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE));
+        [x, z].iter().any(|c| !(2..PADDED_CHUNK_SIZE - 2).contains(c))
+    };
+    for _ in 0..20_000 {
+        if chunks >= 12 {
+            break;
+        }
+        let mut random = || nebula_math::unit_random(&mut state) - 0.5;
+        let direction = DVec3::new(random(), random(), random()).normalize();
+        let lod = 1 + (nebula_math::unit_random(&mut state) * 3.0) as u8;
+        let mut at = layout.voxel_at(direction * (6_371_000.0 + earth.height_at(direction))).unwrap();
+        while at.lod < lod {
+            at = at.parent().unwrap();
+        }
+        let column = layout.chunk_of(at).column();
+        for layer in earth.surface_chunk_layers(column).unwrap() {
+            let mut source = ChunkVoxels::new(column.chunk(layer));
+            earth.fill_chunk(column.chunk(layer), &mut source).unwrap();
+            let (mut off_sides, mut padding) = (source.clone(), source.clone());
+            mesher.plug_reach = mesher::PlugReach::OffSides;
+            if mesher.plug_dark_air(&mut off_sides) == 0 {
+                continue;
+            }
+            chunks += 1;
+            let changed = |plugged: &ChunkVoxels| {
+                source
+                    .as_slice()
+                    .iter()
+                    .zip(plugged.as_slice())
+                    .enumerate()
+                    .filter(|&(i, (a, b))| a != b && on_side(i))
+                    .count()
+            };
+            assert_eq!(changed(&off_sides), 0, "{:?}", column.chunk(layer));
+            mesher.plug_reach = mesher::PlugReach::Padding;
+            mesher.plug_dark_air(&mut padding);
+            control_changed += changed(&padding);
+        }
+    }
+    assert!(chunks >= 12, "only {chunks} chunks with caves found");
+    assert!(control_changed > 0, "the control plugged nothing on the sides: the check cannot tell");
 }
 
 #[test]
