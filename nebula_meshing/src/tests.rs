@@ -684,7 +684,8 @@ proptest! {
     /// (dark to the top, filled with stone where they hold no rock); with
     /// no record of what lies above, none between the two layers it
     /// shares with each radial neighbour; and it fills nothing else (every
-    /// voxel it changed was air, now solid).
+    /// voxel it changed was dark air, now solid, and without a record none
+    /// in those shared layers).
     #[test]
     fn plugging_leaves_no_dark_air(
         bits in proptest::collection::vec(any::<u8>(), 34 * 34 * 34),
@@ -706,6 +707,11 @@ proptest! {
         for (index, (old, new)) in before.as_slice().iter().zip(voxels.as_slice()).enumerate() {
             if old != new {
                 prop_assert!(!old.is_solid() && new.is_solid(), "voxel {index} went from {old:?} to {new:?}");
+                // Only dark air: under its column's floor, and without a
+                // record off the layers shared radially.
+                let (x, y, z) = (index as u32 % 34, index as u32 / 34 % 34, index as u32 / (34 * 34));
+                prop_assert!(y < u32::from(floors[(x + 34 * z) as usize]), "voxel {index} over its floor");
+                prop_assert!(recorded || (2..32).contains(&y), "voxel {index} in a shared layer without a record");
                 changed += 1;
             }
         }
