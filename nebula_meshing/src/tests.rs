@@ -1529,6 +1529,31 @@ fn a_plugged_tunnel_keeps_its_lit_shaft_and_shows_a_dark_wall_where_it_went() {
     assert!(!plugged.has_t_junctions() && interior_edge_balance(&plugged).is_empty());
 }
 
+/// The surface chunks, filled, of random places on `earth` (from `state`)
+/// at random LODs 1–3, up to 20,000 places: where the plugging tests find
+/// real caves.
+fn random_surface_chunks(earth: &ProceduralPlanet, mut state: u64) -> impl Iterator<Item = ChunkVoxels> + '_ {
+    let layout = earth.layout();
+    std::iter::repeat_with(move || {
+        let mut random = || nebula_math::unit_random(&mut state) - 0.5;
+        let direction = DVec3::new(random(), random(), random()).normalize();
+        let lod = 1 + (nebula_math::unit_random(&mut state) * 3.0) as u8;
+        let mut at = layout.voxel_at(direction * (6_371_000.0 + earth.height_at(direction))).unwrap();
+        while at.lod < lod {
+            at = at.parent().unwrap();
+        }
+        layout.chunk_of(at).column()
+    })
+    .take(20_000)
+    .flat_map(move |column| {
+        earth.surface_chunk_layers(column).unwrap().map(move |layer| {
+            let mut voxels = ChunkVoxels::new(column.chunk(layer));
+            earth.fill_chunk(column.chunk(layer), &mut voxels).unwrap();
+            voxels
+        })
+    })
+}
+
 /// Real caves: random chunks of an Earth at LODs 1–3 holding dark air,
 /// plugged as streaming meshes them far away. Each stays watertight inside
 /// with no T-junction; together they lose most of their triangles (the
@@ -1540,37 +1565,24 @@ fn a_plugged_tunnel_keeps_its_lit_shaft_and_shows_a_dark_wall_where_it_went() {
 fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
     let layout = earth.layout();
-    let mut state = 0xca7e_u64;
     let mut mesher = ChunkMesher::new();
     let (mut chunks, mut open_triangles, mut plugged_triangles, mut lit_open, mut lit_plugged) = (0, 0, 0, 0, 0);
-    for _ in 0..20_000 {
+    for mut voxels in random_surface_chunks(&earth, 0xca7e) {
         if chunks >= 12 {
             break;
         }
-        let mut random = || nebula_math::unit_random(&mut state) - 0.5;
-        let direction = DVec3::new(random(), random(), random()).normalize();
-        let lod = 1 + (nebula_math::unit_random(&mut state) * 3.0) as u8;
-        let mut at = layout.voxel_at(direction * (6_371_000.0 + earth.height_at(direction))).unwrap();
-        while at.lod < lod {
-            at = at.parent().unwrap();
+        let key = voxels.key();
+        let open = mesher.mesh(&voxels, layout).unwrap();
+        if mesher.plug_dark_air(&mut voxels) == 0 {
+            continue;
         }
-        let column = layout.chunk_of(at).column();
-        for layer in earth.surface_chunk_layers(column).unwrap() {
-            let key = column.chunk(layer);
-            let mut voxels = ChunkVoxels::new(key);
-            earth.fill_chunk(key, &mut voxels).unwrap();
-            let open = mesher.mesh(&voxels, layout).unwrap();
-            if mesher.plug_dark_air(&mut voxels) == 0 {
-                continue;
-            }
-            let plugged = mesher.mesh(&voxels, layout).unwrap();
-            assert!(!plugged.has_t_junctions() && interior_edge_balance(&plugged).is_empty(), "{key:?}");
-            chunks += 1;
-            open_triangles += open.surface_triangle_count();
-            plugged_triangles += plugged.surface_triangle_count();
-            let lit = |mesh: &ChunkMesh| lights(mesh, &|_, _| true).iter().filter(|&&(_, l)| l == 255).count();
-            (lit_open, lit_plugged) = (lit_open + lit(&open), lit_plugged + lit(&plugged));
-        }
+        let plugged = mesher.mesh(&voxels, layout).unwrap();
+        assert!(!plugged.has_t_junctions() && interior_edge_balance(&plugged).is_empty(), "{key:?}");
+        chunks += 1;
+        open_triangles += open.surface_triangle_count();
+        plugged_triangles += plugged.surface_triangle_count();
+        let lit = |mesh: &ChunkMesh| lights(mesh, &|_, _| true).iter().filter(|&&(_, l)| l == 255).count();
+        (lit_open, lit_plugged) = (lit_open + lit(&open), lit_plugged + lit(&plugged));
     }
     println!(
         "{chunks} Earth chunks with dark air, LODs 1-3: {plugged_triangles} triangles plugged against \
@@ -1590,49 +1602,35 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
 #[test]
 fn stitched_plugs_leave_the_boundary_layers_as_the_source_has_them() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
-    let layout = earth.layout();
-    let mut state = 0x57_1c4e_u64;
     let mut mesher = ChunkMesher::new();
     let (mut chunks, mut control_changed) = (0, 0);
     let on_side = |index: usize| {
         let (x, z) = (index as u32 % PADDED_CHUNK_SIZE, index as u32 / (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE));
         [x, z].iter().any(|c| !(2..PADDED_CHUNK_SIZE - 2).contains(c))
     };
-    for _ in 0..20_000 {
+    for source in random_surface_chunks(&earth, 0x57_1c4e) {
         if chunks >= 12 {
             break;
         }
-        let mut random = || nebula_math::unit_random(&mut state) - 0.5;
-        let direction = DVec3::new(random(), random(), random()).normalize();
-        let lod = 1 + (nebula_math::unit_random(&mut state) * 3.0) as u8;
-        let mut at = layout.voxel_at(direction * (6_371_000.0 + earth.height_at(direction))).unwrap();
-        while at.lod < lod {
-            at = at.parent().unwrap();
+        let (mut off_sides, mut padding) = (source.clone(), source.clone());
+        mesher.plug_reach = mesher::PlugReach::OffSides;
+        if mesher.plug_dark_air(&mut off_sides) == 0 {
+            continue;
         }
-        let column = layout.chunk_of(at).column();
-        for layer in earth.surface_chunk_layers(column).unwrap() {
-            let mut source = ChunkVoxels::new(column.chunk(layer));
-            earth.fill_chunk(column.chunk(layer), &mut source).unwrap();
-            let (mut off_sides, mut padding) = (source.clone(), source.clone());
-            mesher.plug_reach = mesher::PlugReach::OffSides;
-            if mesher.plug_dark_air(&mut off_sides) == 0 {
-                continue;
-            }
-            chunks += 1;
-            let changed = |plugged: &ChunkVoxels| {
-                source
-                    .as_slice()
-                    .iter()
-                    .zip(plugged.as_slice())
-                    .enumerate()
-                    .filter(|&(i, (a, b))| a != b && on_side(i))
-                    .count()
-            };
-            assert_eq!(changed(&off_sides), 0, "{:?}", column.chunk(layer));
-            mesher.plug_reach = mesher::PlugReach::Padding;
-            mesher.plug_dark_air(&mut padding);
-            control_changed += changed(&padding);
-        }
+        chunks += 1;
+        let changed = |plugged: &ChunkVoxels| {
+            source
+                .as_slice()
+                .iter()
+                .zip(plugged.as_slice())
+                .enumerate()
+                .filter(|&(i, (a, b))| a != b && on_side(i))
+                .count()
+        };
+        assert_eq!(changed(&off_sides), 0, "{:?}", source.key());
+        mesher.plug_reach = mesher::PlugReach::Padding;
+        mesher.plug_dark_air(&mut padding);
+        control_changed += changed(&padding);
     }
     assert!(chunks >= 12, "only {chunks} chunks with caves found");
     assert!(control_changed > 0, "the control plugged nothing on the sides: the check cannot tell");
