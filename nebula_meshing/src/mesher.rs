@@ -151,10 +151,6 @@ pub struct ChunkMesher {
     pub(crate) collapse_flat_interiors: bool,
 }
 
-/// What a vertex is made for: a face looking towards `side` of voxel
-/// material `material`; `on_face` when the point is on the outline of
-/// such a face of the chunk (so a cell in front of it is air), not only
-/// on a stitch's zip.
 /// How far towards a chunk's horizontal sides [`ChunkMesher::plug_dark_air`]
 /// fills dark air.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,6 +169,10 @@ pub(crate) enum PlugReach {
     OwnVoxels,
 }
 
+/// What a vertex is made for: a face looking towards `side` of voxel
+/// material `material`; `on_face` when the point is on the outline of
+/// such a face of the chunk (so a cell in front of it is air), not only
+/// on a stitch's zip.
 #[derive(Clone, Copy, Debug)]
 struct VertexKind {
     side: FaceDirection,
@@ -232,19 +232,19 @@ impl ChunkMesher {
     ///
     /// Why the padding too: whether a voxel is dark is its column's own
     /// property (solid somewhere above it, which a source that knows what
-    /// lies over a chunk records, [`ChunkVoxels::set_covered_above`], for
-    /// every column; without a record the two layers a chunk shares with
-    /// each radial neighbour stay open), so
-    /// two chunks of one LOD that both plug fill the voxels they share
-    /// alike, and the faces and vertices on their boundary agree; one
-    /// material for every plug, because the rock a chunk holds of a column
-    /// is not its radial neighbour's, and quads and boundary vertices
-    /// split where materials change. (Plugs
-    /// kept one voxel off every side before: every tunnel crossing a side
-    /// left a voxel-deep stub of walls on both chunks, 53 % of a narrow
-    /// lens's triangles at LOD 1.) A chunk of another LOD shares no
-    /// voxels; the skirts, as deep as the deepest cave, cover a tunnel's
-    /// cross-section there, as they do where a coarse chunk is solid.
+    /// lies over a chunk records for every column,
+    /// [`ChunkVoxels::set_covered_above`]; without a record the two layers
+    /// a chunk shares with each radial neighbour stay open), so two chunks
+    /// of one LOD that both plug fill the voxels they share alike, and the
+    /// faces and vertices on their boundary agree. One material for every
+    /// plug: the rock a chunk holds of a column is not its radial
+    /// neighbour's, and quads and boundary vertices split where materials
+    /// change. (Plugs kept one voxel off every side before: every tunnel
+    /// crossing a side left a voxel-deep stub of walls on both chunks, 53 %
+    /// of a narrow lens's triangles at LOD 1.) A chunk of another LOD
+    /// shares no voxels; the skirts, as deep as the deepest cave, cover a
+    /// tunnel's cross-section there, as they do where a coarse chunk is
+    /// solid. Stitched seams keep the plugs off the horizontal sides.
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
         self.plugs_for = None;
