@@ -291,6 +291,22 @@ impl LodTree {
         self.nodes.get(&column).map(|n| &n.bounds)
     }
 
+    /// How far the parent of `column` lies from `eye`, over the distance
+    /// at which the planet around a narrow view's focus splits it (with
+    /// the surround's constants, [`LodSettings::surround_fov_y_degrees`];
+    /// a view at least that wide refines everything with them): under 1,
+    /// the surround is drawn at `column`'s LOD or finer there; past
+    /// 1 / (1 − hysteresis), coarser (its parent merges). What a streamer
+    /// asks to treat chunks that only a narrow lens draws in detail as a
+    /// wider view would treat them at their distance. `None` for a face
+    /// root, or a column whose parent the tree does not hold.
+    #[must_use]
+    pub fn surround_split_ratio(&self, column: ChunkColumn, eye: DVec3) -> Option<f64> {
+        let parent = parent(column)?;
+        let bounds = &self.nodes.get(&parent)?.bounds;
+        Some(bounds.distance(eye) / self.transition_distance(&self.surround, parent.lod))
+    }
+
     /// The leaves of the drawn tree, sorted.
     #[must_use]
     pub fn leaves(&self) -> Vec<ChunkColumn> {

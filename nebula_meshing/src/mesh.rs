@@ -132,6 +132,9 @@ pub struct ChunkMesh {
     pub(crate) skirt_depths: [f32; 4],
     /// The index range of each side's skirt triangles.
     pub(crate) skirt_ranges: [std::ops::Range<usize>; 4],
+    /// Whether some of the chunk's dark cave air was meshed as rock
+    /// ([`ChunkMesher::plug_dark_air`](crate::ChunkMesher::plug_dark_air)).
+    pub(crate) dark_air_plugged: bool,
 }
 
 impl ChunkMesh {
@@ -152,7 +155,18 @@ impl ChunkMesh {
             skirt_triangles: 0,
             skirt_depths: [0.0; 4],
             skirt_ranges: [0..0, 0..0, 0..0, 0..0],
+            dark_air_plugged: false,
         }
+    }
+
+    /// Whether some of the chunk's dark cave air was meshed as rock
+    /// ([`MeshOptions::plug_dark_air_from_lod`](crate::MeshOptions::plug_dark_air_from_lod),
+    /// [`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)):
+    /// its mesh differs from the chunk's whole caves. A streamer plugging
+    /// by distance meshes it again, open, as the eye comes near.
+    #[must_use]
+    pub fn dark_air_plugged(&self) -> bool {
+        self.dark_air_plugged
     }
 
     /// The range of [`ChunkMesh::indices`] holding each side's skirt (index

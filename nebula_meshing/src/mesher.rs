@@ -163,6 +163,13 @@ pub(crate) enum PlugReach {
     /// a finer neighbour reads this chunk's boundary layer from the source
     /// and closes the seam against it ([`crate::stitch`]).
     OffSides,
+    /// One voxel off every side, radial ones too: every layer the chunk
+    /// shares with a neighbour stays as the source has it, so it closes up
+    /// against any neighbour, plugged or not (a tunnel crossing a side
+    /// keeps a voxel-deep stub there, capped by the plug), for a chunk
+    /// plugged by a choice its neighbours need not share
+    /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)).
+    Interior,
     /// The chunk's own voxels alone, not its padding: a test's control
     /// (the seams open).
     #[cfg(test)]
@@ -261,7 +268,7 @@ impl ChunkMesher {
         let floors = self.sky_floors;
         let (low, high) = match self.plug_reach {
             PlugReach::Padding => (0, PADDED_CHUNK_SIZE),
-            PlugReach::OffSides => (2, PADDED_CHUNK_SIZE - 2),
+            PlugReach::OffSides | PlugReach::Interior => (2, PADDED_CHUNK_SIZE - 2),
             #[cfg(test)]
             PlugReach::OwnVoxels => (1, PADDED_CHUNK_SIZE - 1),
         };
@@ -272,6 +279,7 @@ impl ChunkMesher {
         let (bottom, top) = match self.plug_reach {
             #[cfg(test)]
             PlugReach::OwnVoxels => (low, high),
+            PlugReach::Interior => (2, PADDED_CHUNK_SIZE - 2),
             _ if voxels.covered_above((0, 0)).is_some() => (0, PADDED_CHUNK_SIZE),
             _ => (2, PADDED_CHUNK_SIZE - 2),
         };

@@ -42,6 +42,14 @@ pub struct MeshOptions {
     /// were 43 % of a narrow lens's triangles over land. `None`: every
     /// cave meshed whole.
     pub plug_dark_air_from_lod: Option<u8>,
+    /// Plug this chunk's dark air below `plug_dark_air_from_lod` too, one
+    /// voxel off every side: the layers it shares with its neighbours stay
+    /// as the source has them, so neighbours that do not plug close up
+    /// against it (a tunnel crossing a side keeps a voxel-deep stub, capped
+    /// dark). For a streamer choosing chunk by chunk: a narrow lens draws
+    /// LOD 0 kilometres away, where a cave shows only through its mouths
+    /// as it does from LOD 1 in a wider view.
+    pub plug_dark_air_inside: bool,
 }
 
 impl Default for MeshOptions {
@@ -52,6 +60,7 @@ impl Default for MeshOptions {
             draw_time_skirts: false,
             stitch: false,
             plug_dark_air_from_lod: None,
+            plug_dark_air_inside: false,
         }
     }
 }
@@ -65,6 +74,7 @@ impl MeshOptions {
         draw_time_skirts: false,
         stitch: false,
         plug_dark_air_from_lod: None,
+        plug_dark_air_inside: false,
     };
 
     /// Context-free meshes for streaming: no constraining, a skirt on
@@ -77,6 +87,7 @@ impl MeshOptions {
         draw_time_skirts: true,
         stitch: false,
         plug_dark_air_from_lod: Some(1),
+        plug_dark_air_inside: false,
     };
 
     /// Seams closed by stitches in the boundary planes, no skirts: the
@@ -89,6 +100,7 @@ impl MeshOptions {
         draw_time_skirts: false,
         stitch: true,
         plug_dark_air_from_lod: None,
+        plug_dark_air_inside: false,
     };
 }
 
@@ -138,11 +150,19 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     check_context(key, context)?;
     let voxels = buffer.voxels.get_or_insert_with(|| ChunkVoxels::new(key));
     source.fill_chunk(key, voxels)?;
-    if options.plug_dark_air_from_lod.is_some_and(|lod| key.lod >= lod) {
-        // Stitched seams read a neighbour's boundary layer from the source:
-        // the plugs keep off it.
-        buffer.mesher.plug_reach = if options.stitch { PlugReach::OffSides } else { PlugReach::Padding };
-        buffer.mesher.plug_dark_air(voxels);
+    let mut plugged = false;
+    let plugged_by_lod = options.plug_dark_air_from_lod.is_some_and(|lod| key.lod >= lod);
+    if plugged_by_lod || options.plug_dark_air_inside {
+        buffer.mesher.plug_reach = match (plugged_by_lod, options.stitch) {
+            // Every chunk of the LOD plugs alike.
+            (true, false) => PlugReach::Padding,
+            // Stitched seams read a neighbour's boundary layer from the
+            // source: the plugs keep off it.
+            (true, true) => PlugReach::OffSides,
+            // Neighbours may not plug.
+            (false, _) => PlugReach::Interior,
+        };
+        plugged = buffer.mesher.plug_dark_air(voxels) > 0;
     }
     let layout = source.layout();
     let stitched: Vec<StitchedSide> = if options.stitch {
@@ -181,6 +201,7 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
             constrain_edge_vertices(&mut mesh, side, lod_diff)?;
         }
     }
+    mesh.dark_air_plugged = plugged;
     mesh.order_flattening_walls();
     let center = mesh.planet_center();
     if options.draw_time_skirts {

@@ -350,6 +350,9 @@ pub struct RenderMesh {
     /// morphed or not (skirts hang lower): what an occlusion test may take
     /// as rock under the chunk's patch. `INFINITY` for an empty mesh.
     pub lowest_radius: f64,
+    /// Whether some of the chunk's dark cave air was meshed as rock
+    /// ([`ChunkMesh::dark_air_plugged`]).
+    pub dark_air_plugged: bool,
 }
 
 impl RenderMesh {
@@ -498,6 +501,7 @@ impl ChunkMesh {
             skirt_edges,
             skirt_ranges,
             lowest_radius: self.lowest_radius(&surface),
+            dark_air_plugged: self.dark_air_plugged,
         }
     }
 

@@ -354,20 +354,24 @@ fn seam_defects(
     pair_seam_defects(&voxel_at, axis, rule, plug)
 }
 
-/// How [`seam_defects`] plugs both chunks' dark air.
+/// How [`seam_defects`] plugs the two chunks' dark air.
 #[derive(Clone, Copy, Debug)]
 struct Plugging {
-    /// As streaming plugs, padding included; else each chunk's own voxels
-    /// alone (the control).
-    padding: bool,
+    /// How far each chunk of the pair plugs (`None`: it does not).
+    reaches: [Option<mesher::PlugReach>; 2],
     /// Whether the lower chunk of a radial pair has a record of what the
     /// upper covers ([`pair_chunk`]).
     covered_record: bool,
 }
 
 impl Plugging {
-    /// As streaming plugs a planet's chunks.
-    const STREAMING: Self = Self { padding: true, covered_record: true };
+    /// As streaming plugs a planet's chunks of a LOD it plugs.
+    const STREAMING: Self = Self { reaches: [Some(mesher::PlugReach::Padding); 2], covered_record: true };
+
+    /// Both chunks plugged as far as `reach`.
+    const fn both(reach: mesher::PlugReach, covered_record: bool) -> Self {
+        Self { reaches: [Some(reach); 2], covered_record }
+    }
 }
 
 /// Chunk `key`'s padded voxels from `voxel_at` (padded coordinates of a
@@ -430,10 +434,10 @@ fn pair_seam_defects(
     mesher.boundary_vertices = rule;
     let mut edges: Vec<([i32; 3], [i32; 3])> = Vec::new();
     let mut points: HashSet<[i32; 3]> = HashSet::new();
-    for (key, offset) in [(key_a, 0), (key_b, SIDE)] {
+    for (n, (key, offset)) in [(key_a, 0), (key_b, SIDE)].into_iter().enumerate() {
         let mut voxels = pair_chunk(key, voxel_at, axis, offset as usize, plug.is_none_or(|p| p.covered_record));
-        if let Some(Plugging { padding, .. }) = plug {
-            mesher.plug_reach = if padding { mesher::PlugReach::Padding } else { mesher::PlugReach::OwnVoxels };
+        if let Some(reach) = plug.and_then(|p| p.reaches[n]) {
+            mesher.plug_reach = reach;
             mesher.plug_dark_air(&mut voxels);
         }
         let mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
@@ -568,6 +572,26 @@ fn terraced_neighbours_without_the_canonical_boundary_set_leave_seams() {
     assert!(defects > 0, "terraces without the canonical set left no seam defect: the check cannot tell");
 }
 
+/// The checks of chunks plugged by a choice of their own can fail: next
+/// to a neighbour that does not plug, a plug reaching the layers the two
+/// share (as a LOD plugged by itself plugs, padding included) opens the
+/// seam on every axis, one voxel off every side closes it.
+#[test]
+fn plugs_to_the_padding_beside_an_open_neighbour_open_the_seams() {
+    let mut state = 0x1f5e_u64;
+    let bits: Vec<u8> = (0..66 * 34 * 34).map(|_| (nebula_math::unit_random(&mut state) * 256.0) as u8).collect();
+    let canonical = mesher::BoundaryVertices::Canonical;
+    for axis in 0..3 {
+        let padding = Plugging { reaches: [Some(mesher::PlugReach::Padding), None], covered_record: true };
+        assert!(
+            seam_defects(&bits, 100, axis, canonical, Some(padding)) > 0,
+            "axis {axis}: plugged to the padding, closed"
+        );
+        let inside = Plugging { reaches: [Some(mesher::PlugReach::Interior), None], covered_record: true };
+        assert_eq!(seam_defects(&bits, 100, axis, canonical, Some(inside)), 0, "axis {axis}");
+    }
+}
+
 /// The plugged seam check above can fail: plugs of each chunk's own
 /// voxels alone make a voxel solid for one chunk and air for the
 /// neighbour reading it as padding: open seams on every axis.
@@ -577,7 +601,7 @@ fn plugs_of_a_chunks_own_voxels_alone_open_the_seams() {
     let bits: Vec<u8> = (0..66 * 34 * 34).map(|_| (nebula_math::unit_random(&mut state) * 256.0) as u8).collect();
     for axis in 0..3 {
         let canonical = mesher::BoundaryVertices::Canonical;
-        let own_alone = Plugging { padding: false, covered_record: true };
+        let own_alone = Plugging::both(mesher::PlugReach::OwnVoxels, true);
         assert!(
             seam_defects(&bits, 100, axis, canonical, Some(own_alone)) > 0,
             "axis {axis}: own voxels alone, closed"
@@ -668,7 +692,7 @@ proptest! {
         axis in 0usize..3,
         covered_record in any::<bool>(),
     ) {
-        let plugging = Plugging { padding: true, covered_record };
+        let plugging = Plugging::both(mesher::PlugReach::Padding, covered_record);
         prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
         let mut voxels = random_chunk(&bits[..34 * 34 * 34], density);
         let mut mesher = ChunkMesher::new();
@@ -676,6 +700,28 @@ proptest! {
         let mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
         prop_assert!(!mesh.has_t_junctions());
         prop_assert!(interior_edge_balance(&mesh).is_empty(), "open edges inside the plugged chunk");
+    }
+
+    /// A chunk plugged inside (`MeshOptions::plug_dark_air_inside`, one
+    /// voxel off every side, radial ones too) closes up against a
+    /// neighbour of its LOD that does not plug or that plugs inside too,
+    /// on every axis, with and without a record of what covers a chunk:
+    /// what lets a streamer choose chunk by chunk at a LOD it does not
+    /// plug by itself (next to a LOD it plugs by itself, skirts close the
+    /// seam, as between any two LODs).
+    #[test]
+    fn chunks_plugged_inside_close_up_against_any_neighbour(
+        bits in proptest::collection::vec(any::<u8>(), 66 * 34 * 34),
+        density in 0u8..=255,
+        axis in 0usize..3,
+        other in prop_oneof![Just(None), Just(Some(mesher::PlugReach::Interior))],
+        inside_first in any::<bool>(),
+        covered_record in any::<bool>(),
+    ) {
+        let inside = Some(mesher::PlugReach::Interior);
+        let reaches = if inside_first { [inside, other] } else { [other, inside] };
+        let plugging = Plugging { reaches, covered_record };
+        prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
     }
 
     /// Plugging leaves no dark air: in the whole padded chunk, no air
@@ -1530,14 +1576,19 @@ fn a_plugged_tunnel_keeps_its_lit_shaft_and_shows_a_dark_wall_where_it_went() {
 }
 
 /// The surface chunks, filled, of random places on `earth` (from `state`)
-/// at random LODs 1–3, up to 20,000 places: where the plugging tests find
-/// real caves.
-fn random_surface_chunks(earth: &ProceduralPlanet, mut state: u64) -> impl Iterator<Item = ChunkVoxels> + '_ {
+/// at random LODs of `lods`, up to 20,000 places: where the plugging tests
+/// find real caves.
+fn random_surface_chunks(
+    earth: &ProceduralPlanet,
+    mut state: u64,
+    lods: std::ops::RangeInclusive<u8>,
+) -> impl Iterator<Item = ChunkVoxels> + '_ {
     let layout = earth.layout();
     std::iter::repeat_with(move || {
         let mut random = || nebula_math::unit_random(&mut state) - 0.5;
         let direction = DVec3::new(random(), random(), random()).normalize();
-        let lod = 1 + (nebula_math::unit_random(&mut state) * 3.0) as u8;
+        let span = f64::from(lods.end() - lods.start() + 1);
+        let lod = lods.start() + (nebula_math::unit_random(&mut state) * span) as u8;
         let mut at = layout.voxel_at(direction * (6_371_000.0 + earth.height_at(direction))).unwrap();
         while at.lod < lod {
             at = at.parent().unwrap();
@@ -1567,7 +1618,7 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
     let layout = earth.layout();
     let mut mesher = ChunkMesher::new();
     let (mut chunks, mut open_triangles, mut plugged_triangles, mut lit_open, mut lit_plugged) = (0, 0, 0, 0, 0);
-    for mut voxels in random_surface_chunks(&earth, 0xca7e) {
+    for mut voxels in random_surface_chunks(&earth, 0xca7e, 1..=3) {
         if chunks >= 12 {
             break;
         }
@@ -1593,6 +1644,62 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
     assert!(10 * lit_plugged >= 9 * lit_open, "{lit_plugged} of {lit_open} lit vertices left");
 }
 
+/// Chunks of LOD 0, which streaming does not plug by itself, plugged
+/// inside by choice (`MeshOptions::plug_dark_air_inside`, what a streamer
+/// asks for LOD 0 only a narrow lens draws, kilometres away): real Earth
+/// cave chunks lose most of their triangles and say so
+/// (`ChunkMesh::dark_air_plugged`), and every voxel they share with a
+/// neighbour, on all six sides, stays as the source has it. Without the
+/// choice they are meshed whole; at LODs streaming plugs by itself the
+/// choice changes nothing (those plug to the padding, as their neighbours
+/// of the LOD do).
+#[test]
+fn lod_0_plugged_inside_keeps_every_shared_voxel() {
+    let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
+    let inside = MeshOptions { plug_dark_air_inside: true, ..MeshOptions::STREAMING };
+    let context = |key: ChunkKey| ChunkLodContext::uniform(key.lod);
+    let mut buffer = ChunkMeshBuffer::new();
+    let (mut chunks, mut open_triangles, mut plugged_triangles) = (0, 0, 0);
+    let off_every_side = |index: usize| {
+        let size = PADDED_CHUNK_SIZE as usize;
+        [index % size, index / size % size, index / (size * size)].iter().all(|&c| (2..size - 2).contains(&c))
+    };
+    for source in random_surface_chunks(&earth, 0x10d0, 0..=0) {
+        if chunks >= 12 {
+            break;
+        }
+        let key = source.key();
+        let open = mesh_chunk(&earth, key, &context(key), MeshOptions::STREAMING, &mut buffer).unwrap();
+        assert!(!open.dark_air_plugged(), "{key:?}: LOD 0 plugged by itself");
+        assert_eq!(buffer.voxels().unwrap().as_slice(), source.as_slice());
+        let plugged = mesh_chunk(&earth, key, &context(key), inside, &mut buffer).unwrap();
+        if !plugged.dark_air_plugged() {
+            continue;
+        }
+        chunks += 1;
+        let voxels = buffer.voxels().unwrap().as_slice();
+        for (index, (&now, &was)) in voxels.iter().zip(source.as_slice()).enumerate() {
+            assert!(now == was || off_every_side(index), "{key:?}: shared voxel {index} plugged");
+        }
+        assert!(!plugged.has_t_junctions(), "{key:?}");
+        open_triangles += open.surface_triangle_count();
+        plugged_triangles += plugged.surface_triangle_count();
+    }
+    println!(
+        "{chunks} Earth LOD-0 chunks with dark air: {plugged_triangles} triangles plugged inside against {open_triangles}"
+    );
+    assert!(chunks >= 12, "only {chunks} chunks with caves found");
+    assert!(2 * plugged_triangles < open_triangles, "{plugged_triangles} of {open_triangles}");
+    // Where the LOD plugs by itself the choice changes nothing.
+    for source in random_surface_chunks(&earth, 0x10d1, 1..=3).take(40) {
+        let key = source.key();
+        let by_lod = mesh_chunk(&earth, key, &context(key), MeshOptions::STREAMING, &mut buffer).unwrap();
+        let chosen = mesh_chunk(&earth, key, &context(key), inside, &mut buffer).unwrap();
+        assert_eq!(by_lod.indices(), chosen.indices(), "{key:?}");
+        assert_eq!(by_lod.vertices(), chosen.vertices(), "{key:?}");
+    }
+}
+
 /// For stitched seams ([`MeshOptions::STITCHED`] plugs from LOD 1 too) the
 /// plugs keep off the horizontal sides: a finer neighbour reads this
 /// chunk's boundary layer from the source and closes the seam against it,
@@ -1608,7 +1715,7 @@ fn stitched_plugs_leave_the_boundary_layers_as_the_source_has_them() {
         let (x, z) = (index as u32 % PADDED_CHUNK_SIZE, index as u32 / (PADDED_CHUNK_SIZE * PADDED_CHUNK_SIZE));
         [x, z].iter().any(|c| !(2..PADDED_CHUNK_SIZE - 2).contains(c))
     };
-    for source in random_surface_chunks(&earth, 0x57_1c4e) {
+    for source in random_surface_chunks(&earth, 0x57_1c4e, 1..=3) {
         if chunks >= 12 {
             break;
         }

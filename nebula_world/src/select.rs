@@ -68,6 +68,10 @@ pub(crate) struct Selection {
     /// for: a test makes its plans slow so to see frames drawn meanwhile.
     #[cfg(test)]
     pub(crate) plan_delay_ms: u64,
+    /// Meshes plugged far away are never made again whole: a test breaks
+    /// the streamer so to see its check fail ([`plugs_far`]).
+    #[cfg(test)]
+    pub(crate) plugs_kept: bool,
 }
 
 impl Selection {
@@ -94,6 +98,8 @@ impl Selection {
             prefetch_plans_queue_nothing: false,
             #[cfg(test)]
             plan_delay_ms: 0,
+            #[cfg(test)]
+            plugs_kept: false,
         }
     }
 }
@@ -243,6 +249,29 @@ pub(crate) fn job_priority<S: VoxelSource + ?Sized>(
     voxels.layout().voxel_edge(column.lod) * tree.screen_space().k() / distance
 }
 
+/// Whether a new mesh of `column` plugs its dark cave air inside it
+/// ([`MeshOptions::plug_dark_air_inside`](nebula_meshing::MeshOptions::plug_dark_air_inside))
+/// with the eye at `eye`: at a LOD `seams` does not plug by itself (LOD 0
+/// for streaming), where the planet around a narrow lens's focus is drawn
+/// coarser ([`LodTree::surround_split_ratio`] past the merge, 1 / (1 −
+/// hysteresis)). A 12° lens draws LOD 0 kilometres away; there its caves
+/// show as a 60° view shows them from LOD 1 at that distance, through
+/// their mouths. A view at least as wide as the surround never draws LOD 0
+/// that far: its meshes are never plugged so.
+pub(crate) fn plugs_far(tree: &LodTree, seams: SeamStrategy, column: ChunkColumn, eye: DVec3) -> bool {
+    let plugged_from = seams.mesh_options().plug_dark_air_from_lod;
+    plugged_from.is_some_and(|lod| column.lod < lod)
+        && tree.surround_split_ratio(column, eye).is_some_and(|ratio| ratio * (1.0 - tree.settings().hysteresis) > 1.0)
+}
+
+/// Whether a held mesh of `column` that [`plugs_far`] plugged is made
+/// again whole with the eye at `eye`: the surround is drawn at its LOD
+/// there (the eye came within the split distance; between it and the
+/// merge, meshes stay as they were made).
+fn unplug_due(tree: &LodTree, column: ChunkColumn, eye: DVec3) -> bool {
+    tree.surround_split_ratio(column, eye).is_none_or(|ratio| ratio < 1.0)
+}
+
 /// Columns whose tight tops a [`Selection`] remembers before it forgets
 /// them all (about 5 MB).
 const MAX_TOPS_MEMO: usize = 200_000;
@@ -323,6 +352,11 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         false => SAME_ALL_ROUND,
     };
     let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
+    // Drawn leaves holding meshes plugged far away that the eye came near
+    // ([`plugs_far`]), with their bounds: meshed again whole, the plugged
+    // ones drawn meanwhile. (LODs the strategy plugs by itself stay so.)
+    let plugged_from = seams.mesh_options().plug_dark_air_from_lod.unwrap_or(0);
+    let mut unplug: Vec<(ChunkColumn, &NodeBounds)> = Vec::new();
     // Leaves behind the terrain's horizon are drawn as their coarsest
     // ancestor that is hidden too: a few coarse chunks where the selection
     // has thousands the eye cannot see. Coarse, not left out: where a
@@ -496,6 +530,12 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             used.push((slot, leaf));
             let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
             drawn.push((leaf, known));
+            if cached.chunks.iter().any(|(_, chunk)| chunk.dark_air_plugged)
+                && leaf.lod < plugged_from
+                && unplug_due(tree, leaf, eye)
+            {
+                unplug.push((leaf, bounds));
+            }
             continue;
         }
         wanted.push((leaf, (hidden == Hidden::No).then_some(bounds)));
@@ -577,15 +617,16 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 None => column_layers(voxels, tree, column, view),
             };
             let priority = priority(column);
-            prefetch_jobs.extend(
-                layers.into_iter().map(|layer| column.chunk(layer)).filter(|&key| !holds(key)).map(|key| Job {
+            prefetch_jobs.extend(layers.into_iter().map(|layer| column.chunk(layer)).filter(|&key| !holds(key)).map(
+                |key| Job {
                     tier: Tier::Prefetch,
                     priority,
                     key,
                     seams,
                     relations: predicted(column),
-                }),
-            );
+                    plug_inside: false,
+                },
+            ));
         }
         // The most urgent last: meshed jobs come off its end.
         prefetch_jobs.sort_unstable();
@@ -718,7 +759,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         }
         let priority = priority_within(column, bounds);
         let relations = predicted(column);
-        let job = |layer| Job { tier: Tier::View, priority, key: column.chunk(layer), seams, relations };
+        let job =
+            |layer| Job { tier: Tier::View, priority, key: column.chunk(layer), seams, relations, plug_inside: false };
         match columns.slot(&column) {
             Some((slot, cached)) => {
                 used.push((slot, column));
@@ -741,7 +783,24 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         }
         let priority = if gained.contains(&key) { priority(key.column()) } else { f64::MAX };
         let relations = drawn_relations(key.column()).unwrap_or_else(|| predicted(key.column()));
-        jobs.push(Job { tier: Tier::View, priority, key, seams, relations });
+        jobs.push(Job { tier: Tier::View, priority, key, seams, relations, plug_inside: false });
+    }
+    #[cfg(test)]
+    if selection.plugs_kept {
+        unplug.clear();
+    }
+    for (column, bounds) in unplug {
+        let Some(cached) = columns.get(&column) else { continue };
+        let priority = priority_within(column, Some(bounds));
+        let relations = drawn_relations(column).unwrap_or_else(|| predicted(column));
+        jobs.extend(cached.chunks.iter().filter(|(_, chunk)| chunk.dark_air_plugged).map(|(layer, _)| Job {
+            tier: Tier::View,
+            priority,
+            key: column.chunk(layer),
+            seams,
+            relations,
+            plug_inside: false,
+        }));
     }
     // Prefetching only while there is room for it: what the view needs is
     // never evicted for it. (A chunk waiting to retry a failure does not

@@ -92,7 +92,7 @@ use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
 use crate::select::{
     PLANNED_VIEW_ANGLE_DEGREES, Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent,
-    least_recently_used,
+    least_recently_used, plugs_far,
 };
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
@@ -183,6 +183,9 @@ pub struct LoadedChunk<H> {
     /// No point of its surface is drawn nearer the planet's centre
     /// ([`RenderMesh::lowest_radius`]).
     pub lowest_radius: f64,
+    /// Some of its dark cave air was meshed as rock
+    /// ([`RenderMesh::dark_air_plugged`]).
+    pub dark_air_plugged: bool,
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
@@ -203,6 +206,7 @@ impl<H: MeshHandle> LoadedChunk<H> {
             surface_triangles: surface.map(count),
             skirt_triangles: skirts.map(count),
             lowest_radius: mesh.lowest_radius,
+            dark_air_plugged: mesh.dark_air_plugged,
             cpu: keep_cpu.then(|| Box::new(mesh)),
             made_for: SAME_ALL_ROUND,
         }
@@ -384,7 +388,7 @@ impl<H> LayerMeshes<H> {
     }
 
     /// The meshes, innermost layer first.
-    fn iter(&self) -> impl Iterator<Item = (i32, &LoadedChunk<H>)> {
+    pub(crate) fn iter(&self) -> impl Iterator<Item = (i32, &LoadedChunk<H>)> {
         self.0.iter().map(|(layer, chunk)| (*layer, chunk))
     }
 }
@@ -749,6 +753,10 @@ pub(crate) struct Job {
     pub(crate) key: ChunkKey,
     pub(crate) seams: SeamStrategy,
     pub(crate) relations: SideRelations,
+    /// Whether its dark cave air is plugged where its LOD is not plugged
+    /// by itself ([`MeshOptions::plug_dark_air_inside`]): chosen as it is
+    /// queued, by the eye of that update ([`plugs_far`]).
+    pub(crate) plug_inside: bool,
 }
 
 impl Eq for Job {}
@@ -1967,6 +1975,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             jobs.retain(|job| failed.get(&job.key).is_none_or(|f| f.retry_at <= frame));
         }
         keep_most_urgent(&mut jobs);
+        // Chosen now, by the eye the jobs are queued for (a plan made ahead
+        // was made for a predicted one).
+        for job in &mut jobs {
+            job.plug_inside = plugs_far(&self.tree, seams, job.key.column(), eye);
+        }
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
             let JobState { queue, running, .. } = &mut *state;
@@ -2575,7 +2588,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                                 &*voxels,
                                 job.key,
                                 &mesh_context(job.key.lod, &job.relations),
-                                job.seams.mesh_options(),
+                                MeshOptions { plug_dark_air_inside: job.plug_inside, ..job.seams.mesh_options() },
                                 &mut buffer.borrow_mut(),
                             )
                             .map(|mesh| mesh.render_mesh())
@@ -2793,7 +2806,14 @@ fn settle_seams<S: VoxelSource + ?Sized, H: MeshHandle>(
             if wrong != 0 {
                 mask |= wrong;
                 let key = column.chunk(layer);
-                jobs.push(Job { tier: Tier::Reseam, priority: priority(column), key, seams, relations });
+                jobs.push(Job {
+                    tier: Tier::Reseam,
+                    priority: priority(column),
+                    key,
+                    seams,
+                    relations,
+                    plug_inside: false,
+                });
             }
         }
         if mask != 0 {
@@ -3130,6 +3150,7 @@ mod tests {
             key: ChunkKey { face: CubeFace::PosZ, lod: 0, x, y: 0, layer },
             seams: SeamStrategy::default(),
             relations: SAME_ALL_ROUND,
+            plug_inside: false,
         }
     }
 

@@ -1117,6 +1117,107 @@ mod streaming {
         assert!(control.coarsest > crate::stream::STAND_IN_LEVEL_STEP, "the control did not flash");
     }
 
+    /// Of what `streamer` draws for a camera at `eye`: the LOD-0 columns
+    /// drawn with a mesh whose dark air is plugged, and how many of them
+    /// lie where the planet around a narrow view's focus is drawn at LOD 0
+    /// (its parent nearer than its split distance: [`plugs_far`]'s rule
+    /// says those are drawn whole).
+    fn plugged_lod_0<S: VoxelSource + 'static>(
+        streamer: &Streamer<S, Sized>,
+        eye: DVec3,
+    ) -> (std::collections::HashSet<nebula_voxel::ChunkColumn>, usize) {
+        let plugged: std::collections::HashSet<_> = streamer
+            .drawn()
+            .filter(|(key, chunk, _)| key.lod == 0 && chunk.dark_air_plugged)
+            .map(|(key, _, _)| key.column())
+            .collect();
+        let near = plugged
+            .iter()
+            .filter(|&&column| streamer.tree().surround_split_ratio(column, eye).is_none_or(|ratio| ratio < 1.0))
+            .count();
+        (plugged, near)
+    }
+
+    /// The streamer settled for `camera`.
+    fn settle<S: VoxelSource + 'static>(streamer: &mut Streamer<S, Sized>, camera: Camera) {
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        for frames in 0.. {
+            streamer.update(camera, &mut { upload });
+            if streamer.settled() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            assert!(frames < 40_000, "did not settle");
+        }
+    }
+
+    #[test]
+    fn a_narrow_lens_plugs_lod_0_only_where_a_wide_view_draws_lod_1_and_opens_it_as_the_eye_comes() {
+        // Random poses 150-300 m over Earth's land, 2-4 degrees down,
+        // through a 12-degree lens 200 px tall: LOD 0 is drawn kilometres
+        // out, and its dark caves are plugged there (some drawn chunks
+        // are), never where the surround (60 degrees) draws LOD 0 itself.
+        // Flying 1.5 km on towards them while tilting down to 50 degrees
+        // (the ground the lens then sees lies within that reach), the
+        // chunks plugged that the eye came near are drawn whole once
+        // settled; a 60-degree view of the same pose plugs no LOD-0 chunk.
+        // With the streamer broken to keep its plugs, the flight's check
+        // fails.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
+        let poses = land_poses(&planet, 0x1e75, 2, (150.0, 300.0), (2.0, 4.0));
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
+        let flight = |eye: DVec3, forward: DVec3, plugs_kept: bool| {
+            let up = eye.normalize();
+            let level = (forward - up * forward.dot(up)).normalize();
+            let pitch = forward.dot(-up).asin();
+            let camera = |at: DVec3, down: f64| Camera {
+                position: at,
+                forward: level * down.cos() - up * down.sin(),
+                up,
+                aspect: 1.6,
+            };
+            let mut streamer = Streamer::new(planet.clone(), lens, camera(eye, pitch), 2, &mut { upload }).unwrap();
+            streamer.selection_mut().plugs_kept = plugs_kept;
+            settle(&mut streamer, camera(eye, pitch));
+            let (first, near_first) = plugged_lod_0(&streamer, eye);
+            let (frames, last) = (30, 50f64.to_radians());
+            let mut end = camera(eye, pitch);
+            for frame in 1..=frames {
+                let t = f64::from(frame) / f64::from(frames);
+                end = camera(eye + level * 1_500.0 * t, pitch + (last - pitch) * t);
+                streamer.update(end, &mut { upload });
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            settle(&mut streamer, end);
+            let (now, near_now) = plugged_lod_0(&streamer, end.position);
+            let opened = streamer
+                .drawn()
+                .filter(|(key, chunk, _)| first.contains(&key.column()) && !chunk.dark_air_plugged)
+                .count();
+            (first.len(), near_first, now.len(), near_now, opened)
+        };
+        for (n, &(eye, forward)) in poses.iter().enumerate() {
+            let (first, near_first, now, near_now, opened) = flight(eye, forward, false);
+            println!(
+                "pose {n}: {first} LOD-0 columns drawn plugged ({near_first} near); after the flight: {now} \
+                 ({near_now} near), {opened} chunks of the first drawn whole"
+            );
+            assert!(first > 0, "pose {n}: nothing plugged");
+            assert_eq!((near_first, near_now), (0, 0), "pose {n}: plugged chunks drawn near");
+            assert!(opened > 0, "pose {n}: no plugged chunk opened");
+        }
+        let (eye, forward) = poses[0];
+        let (.., near_now, _) = flight(eye, forward, true);
+        println!("plugs kept: {near_now} plugged LOD-0 columns near after the flight");
+        assert!(near_now > 0, "the control drew no plugged chunk near");
+        let wide = LodSettings { fov_y_degrees: 60.0, ..lens };
+        let camera = Camera { position: eye, forward, up: eye.normalize(), aspect: 1.6 };
+        let mut streamer = Streamer::new(planet.clone(), wide, camera, 2, &mut { upload }).unwrap();
+        settle(&mut streamer, camera);
+        assert!(plugged_lod_0(&streamer, eye).0.is_empty(), "a 60-degree view plugged LOD 0");
+    }
+
     /// A streamer of `world` (the small planet) settled, and past `frames`
     /// frames, for a still camera 30 m over a ground point and 80 m to its
     /// side, looking `lift` metres over the point; the camera and the
