@@ -162,8 +162,9 @@ impl ChunkMesh {
     /// Whether some of the chunk's dark cave air was meshed as rock
     /// ([`MeshOptions::plug_dark_air_from_lod`](crate::MeshOptions::plug_dark_air_from_lod),
     /// [`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)):
-    /// its mesh differs from the chunk's whole caves. A streamer plugging
-    /// by distance meshes it again, open, as the eye comes near.
+    /// its mesh differs from the chunk's whole caves. A streamer that
+    /// plugged it by distance (the second) meshes it again, open, as the
+    /// eye comes near.
     #[must_use]
     pub fn dark_air_plugged(&self) -> bool {
         self.dark_air_plugged

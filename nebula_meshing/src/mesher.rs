@@ -151,8 +151,8 @@ pub struct ChunkMesher {
     pub(crate) collapse_flat_interiors: bool,
 }
 
-/// How far towards a chunk's horizontal sides [`ChunkMesher::plug_dark_air`]
-/// fills dark air.
+/// How far towards a chunk's sides [`ChunkMesher::plug_dark_air`] fills
+/// dark air.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum PlugReach {
     /// The whole padded chunk: chunks of one LOD that both plug fill the
@@ -228,7 +228,8 @@ impl ChunkMesher {
     }
 
     /// Fills the chunk's dark air (cave air under its column's
-    /// [`ChunkVoxels::sky_floors`]), padding included, with stone, and
+    /// [`ChunkVoxels::sky_floors`]) with stone, as far as its reach
+    /// (the padding included, for the plugs of a whole LOD), and
     /// remembers it for the next meshing of this chunk: its
     /// faces towards the open air are then dark, as the cave behind them
     /// would be ([`ChunkMesher`]'s `sky_light`). What a cave looks like
@@ -248,7 +249,9 @@ impl ChunkMesher {
     /// neighbour's, and quads and boundary vertices split where materials
     /// change. (Plugs kept one voxel off every side before: every tunnel
     /// crossing a side left a voxel-deep stub of walls on both chunks, 53 %
-    /// of a narrow lens's triangles at LOD 1.) A chunk of another LOD
+    /// of a narrow lens's triangles at LOD 1: they are kept only where
+    /// neighbours may not plug alike: stitched seams and
+    /// [`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside).) A chunk of another LOD
     /// shares no voxels; the skirts, as deep as the deepest cave, cover a
     /// tunnel's cross-section there, as they do where a coarse chunk is
     /// solid. Stitched seams keep the plugs off the horizontal sides.
@@ -279,8 +282,10 @@ impl ChunkMesher {
         let (bottom, top) = match self.plug_reach {
             #[cfg(test)]
             PlugReach::OwnVoxels => (low, high),
-            PlugReach::Interior => (2, PADDED_CHUNK_SIZE - 2),
-            _ if voxels.covered_above((0, 0)).is_some() => (0, PADDED_CHUNK_SIZE),
+            PlugReach::Padding | PlugReach::OffSides if voxels.covered_above((0, 0)).is_some() => {
+                (0, PADDED_CHUNK_SIZE)
+            }
+            // Interior keeps off the radial sides whatever the record.
             _ => (2, PADDED_CHUNK_SIZE - 2),
         };
         let slice = voxels.as_mut_slice();

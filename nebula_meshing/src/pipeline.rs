@@ -42,8 +42,9 @@ pub struct MeshOptions {
     /// were 43 % of a narrow lens's triangles over land. `None`: every
     /// cave meshed whole.
     pub plug_dark_air_from_lod: Option<u8>,
-    /// Plug this chunk's dark air below `plug_dark_air_from_lod` too, one
-    /// voxel off every side: the layers it shares with its neighbours stay
+    /// Plug this chunk's dark air where `plug_dark_air_from_lod` does not
+    /// (below it, or at every LOD when it is `None`), one voxel off every
+    /// side: the layers it shares with its neighbours stay
     /// as the source has them, so neighbours that do not plug close up
     /// against it (a tunnel crossing a side keeps a voxel-deep stub, capped
     /// dark). For a streamer choosing chunk by chunk: a narrow lens draws

@@ -267,9 +267,13 @@ pub(crate) fn plugs_far(tree: &LodTree, seams: SeamStrategy, column: ChunkColumn
 /// Whether a held mesh of `column` that [`plugs_far`] plugged is made
 /// again whole with the eye at `eye`: the surround is drawn at its LOD
 /// there (the eye came within the split distance; between it and the
-/// merge, meshes stay as they were made).
+/// merge, meshes stay as they were made, while a narrow lens looks), or
+/// the view is no longer narrow (no focus): a wide view draws LOD 0 no
+/// farther than the merge, so nowhere plugged.
 fn unplug_due(tree: &LodTree, column: ChunkColumn, eye: DVec3) -> bool {
-    tree.surround_split_ratio(column, eye).is_none_or(|ratio| ratio < 1.0)
+    let merge = 1.0 / (1.0 - tree.settings().hysteresis);
+    let due = if tree.focus().is_some() { 1.0 } else { merge };
+    tree.surround_split_ratio(column, eye).is_none_or(|ratio| ratio < due)
 }
 
 /// Columns whose tight tops a [`Selection`] remembers before it forgets
@@ -793,7 +797,13 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         let Some(cached) = columns.get(&column) else { continue };
         let priority = priority_within(column, Some(bounds));
         let relations = drawn_relations(column).unwrap_or_else(|| predicted(column));
-        jobs.extend(cached.chunks.iter().filter(|(_, chunk)| chunk.dark_air_plugged).map(|(layer, _)| Job {
+        // An edited chunk is meshed again by its edit's job (above), with
+        // the plug the eye then asks for: one job per chunk.
+        let unplugged = cached
+            .chunks
+            .iter()
+            .filter(|(layer, chunk)| chunk.dark_air_plugged && !stale.contains_key(&column.chunk(*layer)));
+        jobs.extend(unplugged.map(|(layer, _)| Job {
             tier: Tier::View,
             priority,
             key: column.chunk(layer),

@@ -1961,8 +1961,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 jobs.retain(|job| job.tier != Tier::Prefetch);
             }
             reseamed.extend(reseams.iter().map(|job| job.key));
-            // An edited chunk among them is meshed for them by its edit's
-            // job: one job per chunk.
+            // One job per chunk: an edited chunk among them is meshed for
+            // them by its edit's job; one the plan meshes again whole
+            // (unplugged) by its re-seam.
+            jobs.retain(|job| !reseamed.contains(&job.key) || cache.stale.contains_key(&job.key));
             jobs.extend(reseams.into_iter().filter(|job| !cache.stale.contains_key(&job.key)));
         }
         // A chunk that failed waits for its retry (failures collected this

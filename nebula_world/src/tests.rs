@@ -1120,7 +1120,7 @@ mod streaming {
     /// Of what `streamer` draws for a camera at `eye`: the LOD-0 columns
     /// drawn with a mesh whose dark air is plugged, and how many of them
     /// lie where the planet around a narrow view's focus is drawn at LOD 0
-    /// (its parent nearer than its split distance: [`plugs_far`]'s rule
+    /// (its parent nearer than its split distance: `unplug_due`'s rule
     /// says those are drawn whole).
     fn plugged_lod_0<S: VoxelSource + 'static>(
         streamer: &Streamer<S, Sized>,
@@ -1160,35 +1160,41 @@ mod streaming {
         // Flying 1.5 km on towards them while tilting down to 50 degrees
         // (the ground the lens then sees lies within that reach), the
         // chunks plugged that the eye came near are drawn whole once
-        // settled; a 60-degree view of the same pose plugs no LOD-0 chunk.
+        // settled; zoomed out to 60 degrees part way, none is drawn
+        // plugged; a 60-degree view of the same pose plugs no LOD-0 chunk.
         // With the streamer broken to keep its plugs, the flight's check
         // fails.
         let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
         let poses = land_poses(&planet, 0x1e75, 2, (150.0, 300.0), (2.0, 4.0));
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
-        let flight = |eye: DVec3, forward: DVec3, plugs_kept: bool| {
+        // The flight: `t` from 0 to 1 along 1.5 km, tilting to 50 degrees.
+        let path = |eye: DVec3, forward: DVec3| {
             let up = eye.normalize();
             let level = (forward - up * forward.dot(up)).normalize();
-            let pitch = forward.dot(-up).asin();
-            let camera = |at: DVec3, down: f64| Camera {
-                position: at,
-                forward: level * down.cos() - up * down.sin(),
-                up,
-                aspect: 1.6,
-            };
-            let mut streamer = Streamer::new(planet.clone(), lens, camera(eye, pitch), 2, &mut { upload }).unwrap();
+            let (pitch, last) = (forward.dot(-up).asin(), 50f64.to_radians());
+            move |t: f64| {
+                let down = pitch + (last - pitch) * t;
+                Camera {
+                    position: eye + level * 1_500.0 * t,
+                    forward: level * down.cos() - up * down.sin(),
+                    up,
+                    aspect: 1.6,
+                }
+            }
+        };
+        let frames = 30;
+        let flight = |eye: DVec3, forward: DVec3, plugs_kept: bool| {
+            let camera = path(eye, forward);
+            let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
             streamer.selection_mut().plugs_kept = plugs_kept;
-            settle(&mut streamer, camera(eye, pitch));
+            settle(&mut streamer, camera(0.0));
             let (first, near_first) = plugged_lod_0(&streamer, eye);
-            let (frames, last) = (30, 50f64.to_radians());
-            let mut end = camera(eye, pitch);
             for frame in 1..=frames {
-                let t = f64::from(frame) / f64::from(frames);
-                end = camera(eye + level * 1_500.0 * t, pitch + (last - pitch) * t);
-                streamer.update(end, &mut { upload });
+                streamer.update(camera(f64::from(frame) / f64::from(frames)), &mut { upload });
                 std::thread::sleep(std::time::Duration::from_millis(5));
             }
+            let end = camera(1.0);
             settle(&mut streamer, end);
             let (now, near_now) = plugged_lod_0(&streamer, end.position);
             let opened = streamer
@@ -1211,6 +1217,28 @@ mod streaming {
         let (.., near_now, _) = flight(eye, forward, true);
         println!("plugs kept: {near_now} plugged LOD-0 columns near after the flight");
         assert!(near_now > 0, "the control drew no plugged chunk near");
+        // Zoomed out part way: settled frame by frame along the flight
+        // until some plugged chunks drawn lie between split and merge
+        // (ratio 1 to 1 / (1 - hysteresis)), where a wide view's tree
+        // keeps the LOD 0 it holds; zoomed out to the surround's 60
+        // degrees there, they are drawn whole.
+        let camera = path(eye, forward);
+        let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
+        let merge = 1.0 / (1.0 - lens.hysteresis);
+        let banded = (0..=frames).find_map(|frame| {
+            let now = camera(f64::from(frame) / f64::from(frames));
+            settle(&mut streamer, now);
+            let (plugged, _) = plugged_lod_0(&streamer, now.position);
+            let ratio = |column| streamer.tree().surround_split_ratio(column, now.position);
+            let banded = plugged.into_iter().filter(|&c| ratio(c).is_some_and(|r| (1.0..merge).contains(&r))).count();
+            (banded > 0).then_some((frame, banded, now))
+        });
+        let (frame, banded, now) = banded.expect("no plugged chunk drawn between split and merge");
+        streamer.set_view(lens.threshold_px, lens.screen_height_px, 60.0).unwrap();
+        settle(&mut streamer, now);
+        let zoomed_out = plugged_lod_0(&streamer, now.position).0.len();
+        println!("frame {frame}: {banded} plugged LOD-0 columns between split and merge; zoomed out: {zoomed_out}");
+        assert_eq!(zoomed_out, 0, "a 60-degree view drew plugged LOD 0");
         let wide = LodSettings { fov_y_degrees: 60.0, ..lens };
         let camera = Camera { position: eye, forward, up: eye.normalize(), aspect: 1.6 };
         let mut streamer = Streamer::new(planet.clone(), wide, camera, 2, &mut { upload }).unwrap();
