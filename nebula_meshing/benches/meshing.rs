@@ -18,8 +18,10 @@
 //! - `copy_and_plug_dark_air` against `copy`: what plugging a chunk's dark
 //!   cave air costs (`ChunkMesher::plug_dark_air`, streaming from LOD 1);
 //! - `pipeline`: `mesh_chunk` with a coarser neighbour on +X (constraining
-//!   and a skirt there) from the already generated voxels, and `streaming`:
-//!   with `MeshOptions::STREAMING` (draw-time skirts on every side).
+//!   and a skirt there) from the already generated voxels, `streaming`:
+//!   with `MeshOptions::STREAMING` (draw-time skirts on every side), and
+//!   `streaming_plugged_inside`: plugged inside too, its stubs set apart
+//!   (LOD 0 where only a narrow lens draws it).
 //!
 //! Each id names its output: quads for block-mesh, triangles for ours, with
 //! `visible_block_faces` (no merging) for scale; the first lines printed
@@ -311,6 +313,16 @@ fn meshing(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new(format!("{name}/streaming"), format!("tris={tris}")), |b| {
             b.iter(|| mesh_chunk(&source, key, &uniform, MeshOptions::STREAMING, &mut buffer).expect("valid chunk"));
         });
+        // Where only a narrow lens draws it (LOD 0 kilometres away): plugged
+        // inside, its stubs found and set apart.
+        let inside = MeshOptions { plug_dark_air_inside: true, ..MeshOptions::STREAMING };
+        let tris = mesh_chunk(&source, key, &uniform, inside, &mut buffer).expect("valid chunk").triangle_count();
+        group.bench_function(
+            BenchmarkId::new(format!("{name}/streaming_plugged_inside"), format!("tris={tris}")),
+            |b| {
+                b.iter(|| mesh_chunk(&source, key, &uniform, inside, &mut buffer).expect("valid chunk"));
+            },
+        );
         // What a streaming worker hands the renderer: the mesh in GPU form.
         group.bench_function(BenchmarkId::new(format!("{name}/render_mesh"), format!("tris={tris}")), |b| {
             b.iter(|| streamed.render_mesh());

@@ -135,6 +135,16 @@ pub struct ChunkMesh {
     /// Whether some of the chunk's dark cave air was meshed as rock
     /// ([`ChunkMesher::plug_dark_air`](crate::ChunkMesher::plug_dark_air)).
     pub(crate) dark_air_plugged: bool,
+    /// The surface triangles around each side's stubs (index
+    /// `FaceDirection as usize`; [`ChunkMesh::surface_parts`]), after the
+    /// side ranges.
+    pub(crate) stub_ranges: [std::ops::Range<usize>; 6],
+    /// Meshed plugged inside
+    /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)).
+    pub(crate) plugged_inside: bool,
+    /// Some dark air this chunk shares with a neighbour borders its own
+    /// unplugged air ([`ChunkMesh::stubs_exposed`]).
+    pub(crate) stubs_exposed: bool,
 }
 
 impl ChunkMesh {
@@ -156,7 +166,84 @@ impl ChunkMesh {
             skirt_depths: [0.0; 4],
             skirt_ranges: [0..0, 0..0, 0..0, 0..0],
             dark_air_plugged: false,
+            stub_ranges: [0..0, 0..0, 0..0, 0..0, 0..0, 0..0],
+            plugged_inside: false,
+            stubs_exposed: false,
         }
+    }
+
+    /// Whether the chunk was meshed plugged inside
+    /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside),
+    /// whether or not it held dark air to plug): its dark air lies in
+    /// rock but in the layers it shares with its neighbours, and the
+    /// faces around the pockets a side keeps there (its stubs) are
+    /// surface parts of their own ([`ChunkMesh::surface_parts`]).
+    #[must_use]
+    pub fn plugged_inside(&self) -> bool {
+        self.plugged_inside
+    }
+
+    /// Whether a pocket of dark air the chunk shares with a neighbour, off
+    /// its other sides, borders the chunk's own unplugged air (a lit
+    /// shaft beside a side): seen through that air, so the neighbour,
+    /// which cannot see this chunk's voxels, draws its stubs towards it
+    /// ([`ChunkDraw::hidden_stubs`](crate::ChunkDraw::hidden_stubs)).
+    #[must_use]
+    pub fn stubs_exposed(&self) -> bool {
+        self.stubs_exposed
+    }
+
+    /// Moves the surface triangles around stubs out of their side ranges
+    /// into a range per stub side, after the side ranges (before the
+    /// walls are ordered for the morph and skirts are added):
+    /// `stub_side(air)` names the side whose stub the air voxel `air`
+    /// (padded coordinates) lies in, if any. A triangle's air voxel is the
+    /// one in front of the face it lies on, at its centroid (inside one
+    /// greedy quad, whose faces all look into one pocket of air).
+    pub(crate) fn set_aside_stubs(&mut self, stub_side: impl Fn([i32; 3]) -> Option<FaceDirection>) {
+        let surface = self.surface_index_count;
+        let mut order: Vec<usize> = (0..6).collect();
+        order.sort_by_key(|&d| self.surface_side_ranges[d].start);
+        let mut kept = Vec::with_capacity(surface);
+        let mut stubs: [Vec<u32>; 6] = Default::default();
+        let mut ranges = self.surface_side_ranges.clone();
+        for d in order {
+            let facing = FaceDirection::ALL[d];
+            let axis = facing.axis();
+            let start = kept.len();
+            for triangle in self.indices[self.surface_side_ranges[d].clone()].chunks_exact(3) {
+                let locals = [0, 1, 2].map(|k| self.local(triangle[k] as usize));
+                let side = match locals {
+                    [Some(a), Some(b), Some(c)] => {
+                        let mut air = [0; 3];
+                        for k in 0..3 {
+                            air[k] = if k == axis {
+                                if facing.is_positive() { a[k] } else { a[k] - 1 }
+                            } else {
+                                (a[k] + b[k] + c[k]).div_euclid(3)
+                            } + 1;
+                        }
+                        stub_side(air)
+                    }
+                    _ => None,
+                };
+                match side {
+                    Some(side) => stubs[side as usize].extend_from_slice(triangle),
+                    None => kept.extend_from_slice(triangle),
+                }
+            }
+            ranges[d] = start..kept.len();
+        }
+        let mut stub_ranges: [std::ops::Range<usize>; 6] = Default::default();
+        for (side, triangles) in stubs.iter().enumerate() {
+            let start = kept.len();
+            kept.extend_from_slice(triangles);
+            stub_ranges[side] = start..kept.len();
+        }
+        debug_assert_eq!(kept.len(), surface, "the side ranges are the surface");
+        self.indices.splice(..surface, kept);
+        self.surface_side_ranges = ranges;
+        self.stub_ranges = stub_ranges;
     }
 
     /// Whether some of the chunk's dark cave air was meshed as rock
@@ -196,11 +283,14 @@ impl ChunkMesh {
     /// morph keeps at least a voxel tall); part 6 + k, the faces of wall
     /// side `FaceDirection::HORIZONTAL[k]` the morph flattens (their
     /// corners' morph targets on one radial layer: their height shrinks
-    /// with μ, to nothing at μ = 0).
+    /// with μ, to nothing at μ = 0); part 10 + `FaceDirection as usize`,
+    /// the faces around that side's stubs, of any direction (a chunk
+    /// meshed plugged inside, [`ChunkMesh::plugged_inside`]).
     #[must_use]
     pub fn surface_parts(&self) -> [std::ops::Range<usize>; crate::SURFACE_PARTS] {
         let mut parts: [std::ops::Range<usize>; crate::SURFACE_PARTS] = Default::default();
         parts[..6].clone_from_slice(&self.surface_side_ranges);
+        parts[10..].clone_from_slice(&self.stub_ranges);
         for (k, side) in FaceDirection::HORIZONTAL.into_iter().enumerate() {
             let range = self.surface_side_ranges[side as usize].clone();
             let split = range.end - self.steady_wall_indices[k];

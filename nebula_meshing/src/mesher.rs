@@ -143,6 +143,14 @@ pub struct ChunkMesher {
     plugs: Vec<u64>,
     /// The chunk `plugs` was made for (taken by the next meshing).
     plugs_for: Option<ChunkKey>,
+    /// Per padded voxel: 1 + the side (`FaceDirection as usize`) whose
+    /// stub it is ([`ChunkMesher::find_stubs`]), 0 for none.
+    stub_sides: Vec<u8>,
+    /// The chunk `stub_sides` was made for.
+    stubs_for: Option<ChunkKey>,
+    /// Whether some dark air a side shares, off the other sides, borders
+    /// this chunk's unplugged air ([`ChunkMesher::find_stubs`]).
+    pub(crate) stubs_exposed: bool,
     /// How far [`ChunkMesher::plug_dark_air`] reaches towards the sides.
     pub(crate) plug_reach: PlugReach,
     /// Scratch of the flat regions' inner vertices' removal.
@@ -221,6 +229,9 @@ impl ChunkMesher {
             all_lit: false,
             plugs: vec![0; PADDED_CHUNK_VOLUME.div_ceil(64)],
             plugs_for: None,
+            stub_sides: vec![0; PADDED_CHUNK_VOLUME],
+            stubs_for: None,
+            stubs_exposed: false,
             plug_reach: PlugReach::Padding,
             flat_interiors: FlatInteriors::default(),
             collapse_flat_interiors: true,
@@ -258,6 +269,8 @@ impl ChunkMesher {
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
         self.plugs_for = None;
+        self.stubs_for = None;
+        self.stubs_exposed = false;
         voxels.solid_rows(&mut self.greedy.rows);
         // Most chunks have no dark air: nothing to fill, and the meshing
         // then takes them as unplugged (open ground lit without looking).
@@ -314,7 +327,125 @@ impl ChunkMesher {
             // Dark air only where these plugs do not reach: as unplugged.
             self.plugs_for = None;
         }
+        if self.plug_reach == PlugReach::Interior {
+            self.find_stubs(voxels);
+        }
         filled
+    }
+
+    /// Of a chunk plugged inside ([`PlugReach::Interior`], its plugs
+    /// made): its stubs, side by side. A side's stubs are the pockets of
+    /// air in the two layers it shares with the neighbour there (its own
+    /// boundary layer and the padding: the same voxels both chunks hold),
+    /// connected within those layers, that are dark, lie off the layers
+    /// the chunk shares with its other neighbours, and border no air of
+    /// this chunk (its plugs around them): what a tunnel crossing the side
+    /// leaves of itself under the margin plugged inside keeps. Such a
+    /// pocket is closed by this chunk's rock on one side; where the
+    /// neighbour is plugged inside too and its rock closes the other, the
+    /// faces around it look into a cavity no eye outside the rock can
+    /// reach, and a renderer leaves both chunks' out
+    /// ([`ChunkDraw::hidden_stubs`](crate::ChunkDraw::hidden_stubs)). A
+    /// dark pocket off the other sides that borders this chunk's air (a
+    /// lit shaft beside the side) is seen from here: `stubs_exposed` says
+    /// so, and the neighbour then draws its stubs on that side.
+    fn find_stubs(&mut self, voxels: &ChunkVoxels) {
+        const SIZE: usize = PADDED_CHUNK_SIZE as usize;
+        /// Cells of one side's two shared layers.
+        const SLAB: usize = 2 * SIZE * SIZE;
+        self.stub_sides.fill(0);
+        self.stubs_for = Some(voxels.key());
+        let floors = self.sky_floors;
+        let slice = voxels.as_slice();
+        let at = |p: [usize; 3]| PaddedChunkShape::linearize(p.map(|c| c as u32)) as usize;
+        let dark = |p: [usize; 3]| p[1] < usize::from(floors[p[0] + SIZE * p[2]]);
+        let off_other_sides = |c: usize| (2..SIZE - 2).contains(&c);
+        let mut seen = vec![false; SLAB];
+        let (mut stack, mut pocket) = (Vec::new(), Vec::new());
+        // The layers shared radially are dark to both chunks alike only
+        // by the source's record of what covers a chunk.
+        let recorded = voxels.covered_above((0, 0)).is_some();
+        let sides = if recorded { &FaceDirection::ALL[..] } else { &FaceDirection::HORIZONTAL[..] };
+        for &side in sides {
+            let axis = side.axis();
+            let (u_axis, v_axis) = ((axis + 1) % 3, (axis + 2) % 3);
+            // Layer 0 of the slab: the chunk's own boundary layer; 1: the
+            // padding. `inner`: the chunk's layer beside the slab.
+            let (layers, inner) = if side.is_positive() { ([SIZE - 2, SIZE - 1], SIZE - 3) } else { ([1, 0], 2) };
+            let cell = |(layer, u, v): (usize, usize, usize)| {
+                let mut p = [0; 3];
+                p[axis] = layers[layer];
+                p[u_axis] = u;
+                p[v_axis] = v;
+                p
+            };
+            seen.fill(false);
+            for start in 0..SLAB {
+                let first = (start / (SIZE * SIZE), start / SIZE % SIZE, start % SIZE);
+                if seen[start] || slice[at(cell(first))].is_solid() {
+                    continue;
+                }
+                seen[start] = true;
+                stack.push(first);
+                pocket.clear();
+                let (mut enclosed, mut borders_air) = (true, false);
+                while let Some((layer, u, v)) = stack.pop() {
+                    let p = cell((layer, u, v));
+                    pocket.push(at(p));
+                    enclosed &= off_other_sides(u) && off_other_sides(v) && dark(p);
+                    if layer == 0 {
+                        let mut beside = p;
+                        beside[axis] = inner;
+                        borders_air |= !slice[at(beside)].is_solid();
+                    }
+                    let near = [
+                        (layer ^ 1, u, v),
+                        (layer, u.wrapping_sub(1), v),
+                        (layer, u + 1, v),
+                        (layer, u, v.wrapping_sub(1)),
+                        (layer, u, v + 1),
+                    ];
+                    for next in near {
+                        let (l, nu, nv) = next;
+                        if nu >= SIZE || nv >= SIZE {
+                            continue;
+                        }
+                        let n = l * SIZE * SIZE + nu * SIZE + nv;
+                        if !seen[n] && !slice[at(cell(next))].is_solid() {
+                            seen[n] = true;
+                            stack.push(next);
+                        }
+                    }
+                }
+                if enclosed && borders_air {
+                    self.stubs_exposed = true;
+                } else if enclosed {
+                    for &index in &pocket {
+                        self.stub_sides[index] = side as u8 + 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Marks `mesh`, of the chunk this mesher plugged inside last, as
+    /// plugged inside, its stubs' faces set apart by side
+    /// ([`ChunkMesh::surface_parts`]).
+    pub(crate) fn set_aside_stubs(&self, mesh: &mut ChunkMesh) {
+        let key = mesh.key;
+        mesh.set_aside_stubs(|air| self.stub_side(key, air));
+        mesh.plugged_inside = true;
+        mesh.stubs_exposed = self.stubs_for == Some(key) && self.stubs_exposed;
+    }
+
+    /// The side whose stub ([`ChunkMesher::find_stubs`]) the air voxel at
+    /// `padded` of chunk `key` lies in, if any.
+    fn stub_side(&self, key: ChunkKey, padded: [i32; 3]) -> Option<FaceDirection> {
+        if self.stubs_for != Some(key) || padded.iter().any(|&c| !(0..PADDED_CHUNK_SIZE as i32).contains(&c)) {
+            return None;
+        }
+        let side = self.stub_sides[PaddedChunkShape::linearize(padded.map(|c| c as u32)) as usize];
+        side.checked_sub(1).map(|side| FaceDirection::ALL[usize::from(side)])
     }
 
     /// Whether padded voxel `padded` is a plug of the chunk being meshed.

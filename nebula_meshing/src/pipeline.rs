@@ -203,6 +203,11 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
         }
     }
     mesh.dark_air_plugged = plugged;
+    if !plugged_by_lod && options.plug_dark_air_inside && !options.stitch {
+        // Stitched seams zip faces in the side planes from the coarser
+        // neighbour's voxels: no stubs are told apart there.
+        buffer.mesher.set_aside_stubs(&mut mesh);
+    }
     mesh.order_flattening_walls();
     let center = mesh.planet_center();
     if options.draw_time_skirts {

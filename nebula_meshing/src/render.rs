@@ -199,16 +199,23 @@ pub struct ChunkDraw {
     /// morph flattens are left out too (they shrink with μ, so they must
     /// look away by more to be left out).
     pub hidden_flattening: u8,
+    /// Bit `FaceDirection as usize` set: the faces around that side's
+    /// stubs ([`ChunkMesh::plugged_inside`]) are left out. Only where the
+    /// neighbour there, of the same LOD, is drawn plugged inside too and
+    /// none of its stubs is exposed ([`ChunkMesh::stubs_exposed`]): the
+    /// two chunks' rock then closes each pocket on both sides, and what
+    /// is left out looks into a cavity inside it.
+    pub hidden_stubs: u8,
 }
 
 /// How many parts a surface is drawn in ([`ChunkMesh::surface_parts`]).
-pub const SURFACE_PARTS: usize = 10;
+pub const SURFACE_PARTS: usize = 16;
 
 impl ChunkDraw {
     /// Draw constants leaving nothing out.
     #[must_use]
     pub fn new(parent_error: f64, skirt_depths: [f32; 4]) -> Self {
-        Self { parent_error, skirt_depths, hidden_sides: 0, hidden_flattening: 0 }
+        Self { parent_error, skirt_depths, hidden_sides: 0, hidden_flattening: 0, hidden_stubs: 0 }
     }
 
     /// The surface parts drawn (bit n: part n of
@@ -216,7 +223,7 @@ impl ChunkDraw {
     #[must_use]
     pub fn drawn_parts(&self) -> u16 {
         let flattening = !self.hidden_flattening;
-        u16::from(!self.hidden_sides) & 0x3f | Self::wall_parts(flattening)
+        u16::from(!self.hidden_sides) & 0x3f | Self::wall_parts(flattening) | u16::from(!self.hidden_stubs & 0x3f) << 10
     }
 
     /// The parts of the flattened faces of the wall sides set in `sides`
@@ -353,6 +360,10 @@ pub struct RenderMesh {
     /// Whether some of the chunk's dark cave air was meshed as rock
     /// ([`ChunkMesh::dark_air_plugged`]).
     pub dark_air_plugged: bool,
+    /// [`ChunkMesh::plugged_inside`].
+    pub plugged_inside: bool,
+    /// [`ChunkMesh::stubs_exposed`].
+    pub stubs_exposed: bool,
 }
 
 impl RenderMesh {
@@ -502,6 +513,8 @@ impl ChunkMesh {
             skirt_ranges,
             lowest_radius: self.lowest_radius(&surface),
             dark_air_plugged: self.dark_air_plugged,
+            plugged_inside: self.plugged_inside,
+            stubs_exposed: self.stubs_exposed,
         }
     }
 

@@ -386,8 +386,13 @@ fn zips_are_drawn_whatever_sides_are_culled() {
         // faces) draws the zips: they lie among the faces looking up,
         // which are never left out.
         for hidden_sides in 0..16u8 {
-            let draw =
-                ChunkDraw { parent_error: 1.0, skirt_depths: [0.0; 4], hidden_sides, hidden_flattening: hidden_sides };
+            let draw = ChunkDraw {
+                parent_error: 1.0,
+                skirt_depths: [0.0; 4],
+                hidden_sides,
+                hidden_flattening: hidden_sides,
+                hidden_stubs: 0,
+            };
             let ranges: Vec<_> = drawn_ranges(&mesh.surface_parts(), &draw).collect();
             for &start in &zip_starts {
                 assert!(

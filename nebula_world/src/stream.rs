@@ -186,6 +186,11 @@ pub struct LoadedChunk<H> {
     /// Some of its dark cave air was meshed as rock
     /// ([`RenderMesh::dark_air_plugged`]).
     pub dark_air_plugged: bool,
+    /// Meshed plugged inside ([`RenderMesh::plugged_inside`]).
+    pub plugged_inside: bool,
+    /// A stub of it is seen through its own air
+    /// ([`RenderMesh::stubs_exposed`]).
+    pub stubs_exposed: bool,
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
@@ -207,6 +212,8 @@ impl<H: MeshHandle> LoadedChunk<H> {
             skirt_triangles: skirts.map(count),
             lowest_radius: mesh.lowest_radius,
             dark_air_plugged: mesh.dark_air_plugged,
+            plugged_inside: mesh.plugged_inside,
+            stubs_exposed: mesh.stubs_exposed,
             cpu: keep_cpu.then(|| Box::new(mesh)),
             made_for: SAME_ALL_ROUND,
         }
@@ -1680,13 +1687,18 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
     }
 
     /// The draw list before, its walls turned for the eye that came (which
-    /// of a column's sides look away moves with it); no mesh is collected
-    /// (a new one could change a seam the list was checked against).
+    /// of a column's sides look away moves with it), its stubs closed by
+    /// the meshes collected (one meshed open draws them again); no mesh is
+    /// collected for seams made for neighbours (a new one could change a
+    /// seam the list was checked against).
     fn draw_again(&mut self, start: Instant) {
         if self.options.cull_back_sides {
             let cull = (*self.tree.screen_space(), self.morphs());
             let eye = self.eye.position;
             face_walls(&*self.voxels, &self.cache.columns, &mut self.draw, &self.drawn_slots, eye, cull);
+        }
+        if !self.collected.is_empty() {
+            close_stubs(self.voxels.layout(), &self.cache.columns, &mut self.draw, &self.drawn_slots);
         }
         self.frames_drawn_while_planning += 1;
         let millis = start.elapsed().as_secs_f64() * 1e3;
@@ -1934,6 +1946,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         if options.cull_back_sides {
             face_walls(voxels, &cache.columns, &mut draw, &slots, eye, (screen, morph));
         }
+        close_stubs(voxels.layout(), &cache.columns, &mut draw, &slots);
         // A plan made ahead asks for what this update collected: asked
         // again if it still is (a failure waits for its retry below, an
         // edit's chunk is stale until a mesh of its voxels comes). Only the
@@ -3083,6 +3096,55 @@ const MAX_PLAN_LATENCY: u64 = 8;
 /// Which sides of each drawn column look away from `eye` (`scale`: the
 /// frame's screen-space constants and whether it morphs), into the draw
 /// list (`slots`: each column's cache slot, in its order).
+/// Sets each drawn column's [`ChunkDraw::hidden_stubs`] by the meshes held
+/// now: a column whose chunks are all plugged inside with no stub exposed
+/// ([`LoadedChunk::plugged_inside`], [`LoadedChunk::stubs_exposed`]) leaves
+/// out its stubs radially (its layers' pockets are closed by each other's
+/// rock; a layer it does not hold is rock, sky or sealed caves) and
+/// towards each side whose same-LOD neighbour is drawn so too. Called
+/// whenever the meshes drawn may have changed (a new draw list, meshes
+/// collected): a neighbour meshed open draws its side's stubs again the
+/// frame its mesh is drawn.
+fn close_stubs<H: MeshHandle>(
+    layout: &nebula_voxel::ChunkLayout,
+    columns: &ColumnStore<H>,
+    draw: &mut DrawList,
+    slots: &[Option<usize>],
+) {
+    let closed: Vec<bool> = draw
+        .columns
+        .iter()
+        .zip(slots)
+        .map(|((column, _), slot)| {
+            let cached = slot.and_then(|slot| columns.in_slot(slot, *column));
+            cached.is_some_and(|cached| {
+                cached.chunks.iter().all(|(_, chunk)| chunk.plugged_inside && !chunk.stubs_exposed)
+                    && cached.chunks.iter().next().is_some()
+            })
+        })
+        .collect();
+    let is_closed =
+        |column: ChunkColumn| draw.columns.binary_search_by_key(&column, |&(c, _)| c).is_ok_and(|index| closed[index]);
+    let hidden: Vec<u8> = draw
+        .columns
+        .iter()
+        .zip(&closed)
+        .map(|(&(column, _), &closed)| {
+            if !closed {
+                return 0;
+            }
+            let radial = 1 << FaceDirection::PosY as u8 | 1 << FaceDirection::NegY as u8;
+            FaceDirection::HORIZONTAL.into_iter().fold(radial, |hidden, side| {
+                let across = side.face_edge().map(|edge| layout.neighbor(column.chunk(0), edge).column());
+                if across.is_some_and(is_closed) { hidden | 1 << side as u8 } else { hidden }
+            })
+        })
+        .collect();
+    for ((_, chunk_draw), hidden) in draw.columns.iter_mut().zip(hidden) {
+        chunk_draw.hidden_stubs = hidden;
+    }
+}
+
 fn face_walls<H: MeshHandle>(
     voxels: &dyn VoxelSource,
     columns: &ColumnStore<H>,

@@ -1246,6 +1246,92 @@ mod streaming {
         assert!(plugged_lod_0(&streamer, eye).0.is_empty(), "a 60-degree view plugged LOD 0");
     }
 
+    /// Of what `streamer` draws: the chunks drawn leaving out stubs
+    /// (`ChunkDraw::hidden_stubs`), and those of them where a side's stubs
+    /// are left out though this chunk, or the chunk there, is drawn now
+    /// with a mesh not plugged inside or with a stub exposed, or where no
+    /// column of its LOD is drawn across the side.
+    fn stubs_left_out<S: VoxelSource + 'static>(streamer: &Streamer<S, Sized>) -> (usize, usize) {
+        let drawn: std::collections::HashMap<nebula_voxel::ChunkKey, bool> =
+            streamer.drawn().map(|(key, chunk, _)| (key, chunk.plugged_inside && !chunk.stubs_exposed)).collect();
+        let columns: std::collections::HashSet<_> = drawn.keys().map(|key| key.column()).collect();
+        let layout = streamer.voxels().layout();
+        let (mut leaving_out, mut wrong) = (0, 0);
+        for (key, _, draw) in streamer.drawn() {
+            if draw.hidden_stubs == 0 {
+                continue;
+            }
+            leaving_out += 1;
+            // Not drawn open or exposed (a layer a column does not hold
+            // is rock, sky or sealed caves).
+            let not_open = |key: nebula_voxel::ChunkKey| drawn.get(&key) != Some(&false);
+            let sides_closed = nebula_math::FaceDirection::ALL.into_iter().all(|side| {
+                if draw.hidden_stubs & (1 << side as u8) == 0 {
+                    return true;
+                }
+                match side.face_edge() {
+                    Some(edge) => {
+                        let across = layout.neighbor(key, edge);
+                        columns.contains(&across.column()) && not_open(across)
+                    }
+                    None => not_open(nebula_voxel::ChunkKey {
+                        layer: key.layer + if side.is_positive() { 1 } else { -1 },
+                        ..key
+                    }),
+                }
+            });
+            if drawn.get(&key) != Some(&true) || !sides_closed {
+                wrong += 1;
+            }
+        }
+        (leaving_out, wrong)
+    }
+
+    #[test]
+    fn stubs_are_left_out_only_between_chunks_drawn_plugged_inside_on_every_frame_of_a_lens_flight() {
+        // A 12-degree lens 200 px tall over Earth's land, 150-300 m up:
+        // far LOD-0 chunks are plugged inside, and many leave out their
+        // stubs towards neighbours plugged so too. On every frame of a
+        // 1.5 km flight tilting down to 50 degrees (the chunks the eye
+        // comes near meshed open again, those it leaves behind dropped, a
+        // frame drawing the plan before while the LOD thread plans), a
+        // chunk leaves out a side's stubs only where the chunk there is
+        // drawn that frame plugged inside with no stub exposed.
+        let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
+        let (eye, forward) = land_poses(&planet, 0x57b7, 1, (150.0, 300.0), (2.0, 4.0))[0];
+        let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
+        let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
+        let up = eye.normalize();
+        let level = (forward - up * forward.dot(up)).normalize();
+        let (pitch, last) = (forward.dot(-up).asin(), 50f64.to_radians());
+        let camera = |t: f64| {
+            let down = pitch + (last - pitch) * t;
+            Camera {
+                position: eye + level * 1_500.0 * t,
+                forward: level * down.cos() - up * down.sin(),
+                up,
+                aspect: 1.6,
+            }
+        };
+        let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
+        settle(&mut streamer, camera(0.0));
+        let (settled, wrong) = stubs_left_out(&streamer);
+        println!("settled: {settled} chunks leave out stubs");
+        assert!(settled > 100, "only {settled} chunks leave out stubs");
+        assert_eq!(wrong, 0, "settled: stubs left out beside a chunk not plugged inside");
+        let (mut most, mut frames) = (0, 0);
+        for frame in 1..=120 {
+            streamer.update(camera(f64::from(frame.min(90)) / 90.0), &mut { upload });
+            let (leaving_out, wrong) = stubs_left_out(&streamer);
+            assert_eq!(wrong, 0, "frame {frame}: stubs left out beside a chunk not plugged inside");
+            most = most.max(leaving_out);
+            frames += usize::from(leaving_out > 0);
+            std::thread::sleep(std::time::Duration::from_millis(3));
+        }
+        println!("in flight: up to {most} chunks leave out stubs, in {frames} of 120 frames");
+        assert!(frames > 10, "stubs left out in {frames} frames only");
+    }
+
     /// A streamer of `world` (the small planet) settled, and past `frames`
     /// frames, for a still camera 30 m over a ground point and 80 m to its
     /// side, looking `lift` metres over the point; the camera and the
