@@ -199,9 +199,15 @@ impl ChunkMesh {
     /// `stub_side(air)` names the side whose stub the air voxel `air`
     /// (padded coordinates) lies in, if any. A triangle's air voxel is the
     /// one in front of the face it lies on, at its centroid (inside one
-    /// greedy quad, whose faces all look into one pocket of air).
+    /// greedy quad or flat region, whose faces all look into air linked in
+    /// their plane: one pocket).
     pub(crate) fn set_aside_stubs(&mut self, stub_side: impl Fn([i32; 3]) -> Option<FaceDirection>) {
         let surface = self.surface_index_count;
+        if self.surface_side_ranges.iter().map(ExactSizeIterator::len).sum::<usize>() != surface {
+            // Triangles outside the side ranges (none a mesher makes): the
+            // surface is kept whole, nothing set apart.
+            return;
+        }
         let mut order: Vec<usize> = (0..6).collect();
         order.sort_by_key(|&d| self.surface_side_ranges[d].start);
         let mut kept = Vec::with_capacity(surface);
@@ -240,7 +246,6 @@ impl ChunkMesh {
             kept.extend_from_slice(triangles);
             stub_ranges[side] = start..kept.len();
         }
-        debug_assert_eq!(kept.len(), surface, "the side ranges are the surface");
         self.indices.splice(..surface, kept);
         self.surface_side_ranges = ranges;
         self.stub_ranges = stub_ranges;
@@ -268,9 +273,10 @@ impl ChunkMesh {
     }
 
     /// The range of [`ChunkMesh::indices`] holding the surface triangles of
-    /// the faces looking towards each side (index `FaceDirection as usize`);
-    /// a renderer leaves parts of them out by [`ChunkMesh::surface_parts`]
-    /// (see `ChunkDraw::hidden_sides`).
+    /// the faces looking towards each side (index `FaceDirection as usize`;
+    /// but those around stubs, which a mesh plugged inside holds in parts
+    /// of their own); a renderer leaves parts of them out by
+    /// [`ChunkMesh::surface_parts`] (see `ChunkDraw::hidden_sides`).
     #[must_use]
     pub fn surface_side_ranges(&self) -> [std::ops::Range<usize>; 6] {
         self.surface_side_ranges.clone()

@@ -818,20 +818,23 @@ proptest! {
         prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
     }
 
-    /// Two neighbours of a LOD, either or both plugged inside, each
-    /// leaving out its stubs towards the other where a renderer does
-    /// (both plugged inside, neither with a stub exposed): the seam still
-    /// closes, and no edge inside either chunk is left open.
+    /// Two neighbours of a LOD plugged inside, each leaving out its stubs
+    /// towards the other where a renderer does (neither with a stub
+    /// exposed): the seam still closes, and no edge inside either chunk
+    /// is left open. (Beside a chunk that does not plug, nothing is left
+    /// out: the control below.)
     #[test]
     fn stubs_left_out_between_chunks_plugged_inside_leave_them_closed(
         bits in proptest::collection::vec(any::<u8>(), 66 * 34 * 34),
         density in 0u8..=255,
         axis in 0usize..3,
-        other in prop_oneof![Just(None), Just(Some(mesher::PlugReach::Interior))],
         covered_record in any::<bool>(),
     ) {
-        let reaches = [Some(mesher::PlugReach::Interior), other];
-        let plugging = Plugging { reaches, covered_record, stubs: HiddenStubs::WhereClosed };
+        let plugging = Plugging {
+            reaches: [Some(mesher::PlugReach::Interior); 2],
+            covered_record,
+            stubs: HiddenStubs::WhereClosed,
+        };
         prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
     }
 
@@ -2117,17 +2120,20 @@ fn earth_ground_loses_inner_vertices_and_the_cover_breaks_without_the_orientatio
     assert!(broken > 0, "unchecked collapses broke nothing");
 }
 
-/// Real caves: random Earth LOD-0 chunks holding dark air, plugged inside
-/// as streaming meshes them where only a narrow lens draws LOD 0. Setting
-/// their stubs apart moves triangles between parts and changes none (the
-/// same triangles, the side ranges still by face direction); a share of
-/// them are stubs, on the horizontal sides most.
+/// Real caves: random Earth LOD-0 surface chunks plugged inside as
+/// streaming meshes them where only a narrow lens draws LOD 0, those whose
+/// only dark air lies in the layers they share included. Setting their
+/// stubs apart moves triangles between parts and changes none (the same
+/// triangles; each side range still faces its side, every triangle in it
+/// turned the same way along its axis); a share of them are stubs, on the
+/// horizontal sides most.
 #[test]
 fn stubs_set_apart_keep_every_triangle_of_real_caves() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
     let mut mesher = ChunkMesher::new();
     mesher.plug_reach = mesher::PlugReach::Interior;
     let (mut chunks, mut total, mut stubs) = (0, 0, [0usize; 6]);
+    let mut turn = None;
     let sorted = |mesh: &ChunkMesh, range: std::ops::Range<usize>| {
         let mut triangles: Vec<[[i32; 3]; 3]> = mesh.indices()[range]
             .chunks_exact(3)
@@ -2136,36 +2142,36 @@ fn stubs_set_apart_keep_every_triangle_of_real_caves() {
         triangles.sort_unstable();
         triangles
     };
-    for mut voxels in random_surface_chunks(&earth, 0x57b6, 0..=0) {
-        if chunks >= 40 {
-            break;
-        }
-        if mesher.plug_dark_air(&mut voxels) == 0 {
-            continue;
-        }
-        chunks += 1;
+    for mut voxels in random_surface_chunks(&earth, 0x57b6, 0..=0).take(300) {
+        mesher.plug_dark_air(&mut voxels);
         let whole = mesher.mesh(&voxels, earth.layout()).unwrap();
         let mut apart = whole.clone();
         mesher.set_aside_stubs(&mut apart);
         assert!(apart.plugged_inside(), "{:?}", voxels.key());
         let surface = 0..whole.surface_triangle_count() * 3;
         assert_eq!(sorted(&whole, surface.clone()), sorted(&apart, surface), "{:?}", voxels.key());
-        let parts = apart.surface_parts();
         for (side, range) in apart.surface_side_ranges().iter().enumerate() {
             let facing = FaceDirection::ALL[side];
             for t in apart.indices()[range.clone()].chunks_exact(3) {
-                let corners: Vec<i32> = t.iter().map(|&i| apart.local(i as usize).unwrap()[facing.axis()]).collect();
-                assert!(corners.iter().all(|&c| c == corners[0]), "a triangle off its face's plane");
+                let [a, b, c] = [0, 1, 2].map(|k| apart.local(t[k] as usize).unwrap().map(i64::from));
+                let (u, v) = ([0, 1, 2].map(|k| b[k] - a[k]), [0, 1, 2].map(|k| c[k] - a[k]));
+                let normal = [0, 1, 2].map(|k| u[(k + 1) % 3] * v[(k + 2) % 3] - u[(k + 2) % 3] * v[(k + 1) % 3]);
+                let along = normal[facing.axis()].signum() * if facing.is_positive() { 1 } else { -1 };
+                assert!(along != 0 && (0..3).all(|k| k == facing.axis() || normal[k] == 0), "{facing:?}: {normal:?}");
+                assert_eq!(*turn.get_or_insert(along), along, "{facing:?}: a triangle turned the other way");
             }
         }
+        let parts = apart.surface_parts();
+        let set_apart: usize = (10..16).map(|part| parts[part].len() / 3).sum();
+        chunks += usize::from(set_apart > 0);
         total += apart.surface_triangle_count();
         for (side, count) in stubs.iter_mut().enumerate() {
             *count += parts[10 + side].len() / 3;
         }
     }
     let all: usize = stubs.iter().sum();
-    println!("{chunks} Earth LOD-0 chunks plugged inside: {all} of {total} triangles around stubs, by side {stubs:?}");
-    assert!(chunks >= 40, "only {chunks} chunks with caves found");
-    assert!(all > total / 10, "{all} of {total}");
+    println!("{chunks} Earth LOD-0 chunks with stubs: {all} of {total} triangles around stubs, by side {stubs:?}");
+    assert!(chunks >= 20, "only {chunks} chunks with stubs");
+    assert!(all > total / 20, "{all} of {total}");
     assert!(stubs[..4].iter().all(|&n| n > 0), "{stubs:?}");
 }

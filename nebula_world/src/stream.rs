@@ -1626,6 +1626,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if here {
                 self.times.select_ms += self.times.plan_ms;
             }
+        } else if !self.collected.is_empty() {
+            // The last frame's selection is drawn again, with the meshes
+            // just collected: its stubs closed by them.
+            close_stubs(self.voxels.layout(), &self.cache.columns, &mut self.draw, &self.drawn_slots);
         }
         // Else the last frame's selection is drawn again (nothing it draws
         // was freed), never an empty one.
@@ -3093,9 +3097,6 @@ pub enum StreamError {
 /// margin covers.
 const MAX_PLAN_LATENCY: u64 = 8;
 
-/// Which sides of each drawn column look away from `eye` (`scale`: the
-/// frame's screen-space constants and whether it morphs), into the draw
-/// list (`slots`: each column's cache slot, in its order).
 /// Sets each drawn column's [`ChunkDraw::hidden_stubs`] by the meshes held
 /// now: a column whose chunks are all plugged inside with no stub exposed
 /// ([`LoadedChunk::plugged_inside`], [`LoadedChunk::stubs_exposed`]) leaves
@@ -3117,9 +3118,12 @@ fn close_stubs<H: MeshHandle>(
         .zip(slots)
         .map(|((column, _), slot)| {
             let cached = slot.and_then(|slot| columns.in_slot(slot, *column));
+            // Every layer it draws held (one awaited is surface the eye
+            // may see), plugged inside, none exposed.
             cached.is_some_and(|cached| {
-                cached.chunks.iter().all(|(_, chunk)| chunk.plugged_inside && !chunk.stubs_exposed)
+                cached.missing == 0
                     && cached.chunks.iter().next().is_some()
+                    && cached.chunks.iter().all(|(_, chunk)| chunk.plugged_inside && !chunk.stubs_exposed)
             })
         })
         .collect();
@@ -3145,6 +3149,9 @@ fn close_stubs<H: MeshHandle>(
     }
 }
 
+/// Which sides of each drawn column look away from `eye` (`scale`: the
+/// frame's screen-space constants and whether it morphs), into the draw
+/// list (`slots`: each column's cache slot, in its order).
 fn face_walls<H: MeshHandle>(
     voxels: &dyn VoxelSource,
     columns: &ColumnStore<H>,
