@@ -1151,6 +1151,25 @@ mod streaming {
         }
     }
 
+    /// A lens's flight from a pose (`eye`, looking along `forward`): the
+    /// camera at `t` from 0 to 1, 1.5 km on along the ground, tilting from
+    /// the pose's pitch down to 50 degrees (the ground the lens then sees
+    /// lies near).
+    fn lens_flight(eye: DVec3, forward: DVec3) -> impl Fn(f64) -> Camera {
+        let up = eye.normalize();
+        let level = (forward - up * forward.dot(up)).normalize();
+        let (pitch, last) = (forward.dot(-up).asin(), 50f64.to_radians());
+        move |t: f64| {
+            let down = pitch + (last - pitch) * t;
+            Camera {
+                position: eye + level * 1_500.0 * t,
+                forward: level * down.cos() - up * down.sin(),
+                up,
+                aspect: 1.6,
+            }
+        }
+    }
+
     #[test]
     fn a_narrow_lens_plugs_lod_0_only_where_a_wide_view_draws_lod_1_and_opens_it_as_the_eye_comes() {
         // Random poses 150-300 m over Earth's land, 2-4 degrees down,
@@ -1168,24 +1187,9 @@ mod streaming {
         let poses = land_poses(&planet, 0x1e75, 2, (150.0, 300.0), (2.0, 4.0));
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
-        // The flight: `t` from 0 to 1 along 1.5 km, tilting to 50 degrees.
-        let path = |eye: DVec3, forward: DVec3| {
-            let up = eye.normalize();
-            let level = (forward - up * forward.dot(up)).normalize();
-            let (pitch, last) = (forward.dot(-up).asin(), 50f64.to_radians());
-            move |t: f64| {
-                let down = pitch + (last - pitch) * t;
-                Camera {
-                    position: eye + level * 1_500.0 * t,
-                    forward: level * down.cos() - up * down.sin(),
-                    up,
-                    aspect: 1.6,
-                }
-            }
-        };
         let frames = 30;
         let flight = |eye: DVec3, forward: DVec3, plugs_kept: bool| {
-            let camera = path(eye, forward);
+            let camera = lens_flight(eye, forward);
             let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
             streamer.selection_mut().plugs_kept = plugs_kept;
             settle(&mut streamer, camera(0.0));
@@ -1222,7 +1226,7 @@ mod streaming {
         // (ratio 1 to 1 / (1 - hysteresis)), where a wide view's tree
         // keeps the LOD 0 it holds; zoomed out to the surround's 60
         // degrees there, they are drawn whole.
-        let camera = path(eye, forward);
+        let camera = lens_flight(eye, forward);
         let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
         let merge = 1.0 / (1.0 - lens.hysteresis);
         let banded = (0..=frames).find_map(|frame| {
@@ -1301,18 +1305,7 @@ mod streaming {
         let (eye, forward) = land_poses(&planet, 0x57b7, 1, (150.0, 300.0), (2.0, 4.0))[0];
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
-        let up = eye.normalize();
-        let level = (forward - up * forward.dot(up)).normalize();
-        let (pitch, last) = (forward.dot(-up).asin(), 50f64.to_radians());
-        let camera = |t: f64| {
-            let down = pitch + (last - pitch) * t;
-            Camera {
-                position: eye + level * 1_500.0 * t,
-                forward: level * down.cos() - up * down.sin(),
-                up,
-                aspect: 1.6,
-            }
-        };
+        let camera = lens_flight(eye, forward);
         let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
         settle(&mut streamer, camera(0.0));
         let (settled, wrong) = stubs_left_out(&streamer);
