@@ -159,6 +159,12 @@ pub struct ChunkMesher {
     pub(crate) collapse_flat_interiors: bool,
 }
 
+/// The layers of padded voxels a chunk shares with its neighbour on each
+/// side, from that side in: the padding (the neighbour's boundary layer)
+/// and its own boundary layer (the neighbour's padding). Plugs that keep
+/// off a side keep off these; a side's stubs lie in them.
+const SHARED_LAYERS: u32 = 2;
+
 /// How far towards a chunk's sides [`ChunkMesher::plug_dark_air`] fills
 /// dark air.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -284,7 +290,7 @@ impl ChunkMesher {
         let floors = self.sky_floors;
         let (low, high) = match self.plug_reach {
             PlugReach::Padding => (0, PADDED_CHUNK_SIZE),
-            PlugReach::OffSides | PlugReach::Interior => (2, PADDED_CHUNK_SIZE - 2),
+            PlugReach::OffSides | PlugReach::Interior => (SHARED_LAYERS, PADDED_CHUNK_SIZE - SHARED_LAYERS),
             #[cfg(test)]
             PlugReach::OwnVoxels => (1, PADDED_CHUNK_SIZE - 1),
         };
@@ -299,7 +305,7 @@ impl ChunkMesher {
                 (0, PADDED_CHUNK_SIZE)
             }
             // Interior keeps off the radial sides whatever the record.
-            _ => (2, PADDED_CHUNK_SIZE - 2),
+            _ => (SHARED_LAYERS, PADDED_CHUNK_SIZE - SHARED_LAYERS),
         };
         let slice = voxels.as_mut_slice();
         let mut filled = 0;
@@ -359,7 +365,8 @@ impl ChunkMesher {
         let slice = voxels.as_slice();
         let at = |p: [usize; 3]| PaddedChunkShape::linearize(p.map(|c| c as u32)) as usize;
         let dark = |p: [usize; 3]| p[1] < usize::from(floors[p[0] + SIZE * p[2]]);
-        let off_other_sides = |c: usize| (2..SIZE - 2).contains(&c);
+        const SHARED: usize = SHARED_LAYERS as usize;
+        let off_other_sides = |c: usize| (SHARED..SIZE - SHARED).contains(&c);
         let mut seen = vec![false; SLAB];
         let (mut stack, mut pocket) = (Vec::new(), Vec::new());
         // The layers shared radially are dark to both chunks alike only
@@ -371,7 +378,8 @@ impl ChunkMesher {
             let (u_axis, v_axis) = ((axis + 1) % 3, (axis + 2) % 3);
             // Layer 0 of the slab: the chunk's own boundary layer; 1: the
             // padding. `inner`: the chunk's layer beside the slab.
-            let (layers, inner) = if side.is_positive() { ([SIZE - 2, SIZE - 1], SIZE - 3) } else { ([1, 0], 2) };
+            let (layers, inner) =
+                if side.is_positive() { ([SIZE - 2, SIZE - 1], SIZE - 1 - SHARED) } else { ([1, 0], SHARED) };
             let cell = |(layer, u, v): (usize, usize, usize)| {
                 let mut p = [0; 3];
                 p[axis] = layers[layer];
