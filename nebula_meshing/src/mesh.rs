@@ -174,10 +174,13 @@ impl ChunkMesh {
 
     /// Whether the chunk was meshed plugged inside
     /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside),
-    /// whether or not it held dark air to plug): its dark air lies in
-    /// rock but in the layers it shares with its neighbours, and the
-    /// faces around the pockets a side keeps there (its stubs) are
-    /// surface parts of their own ([`ChunkMesh::surface_parts`]).
+    /// whether or not it held dark air to plug) with its stubs set apart:
+    /// its dark air lies in rock but in the layers it shares with its
+    /// neighbours, and the faces around the pockets a side keeps there
+    /// (its stubs) are surface parts of their own
+    /// ([`ChunkMesh::surface_parts`]). Not under stitched seams, whose
+    /// zips lie in the side planes: such a mesh is plugged, its stubs
+    /// drawn with the rest.
     #[must_use]
     pub fn plugged_inside(&self) -> bool {
         self.plugged_inside

@@ -153,16 +153,17 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     source.fill_chunk(key, voxels)?;
     let mut plugged = false;
     let plugged_by_lod = options.plug_dark_air_from_lod.is_some_and(|lod| key.lod >= lod);
-    if plugged_by_lod || options.plug_dark_air_inside {
-        buffer.mesher.plug_reach = match (plugged_by_lod, options.stitch) {
-            // Every chunk of the LOD plugs alike.
-            (true, false) => PlugReach::Padding,
-            // Stitched seams read a neighbour's boundary layer from the
-            // source: the plugs keep off it.
-            (true, true) => PlugReach::OffSides,
-            // Neighbours may not plug.
-            (false, _) => PlugReach::Interior,
-        };
+    let reach = (plugged_by_lod || options.plug_dark_air_inside).then_some(match (plugged_by_lod, options.stitch) {
+        // Every chunk of the LOD plugs alike.
+        (true, false) => PlugReach::Padding,
+        // Stitched seams read a neighbour's boundary layer from the
+        // source: the plugs keep off it.
+        (true, true) => PlugReach::OffSides,
+        // Neighbours may not plug.
+        (false, _) => PlugReach::Interior,
+    });
+    if let Some(reach) = reach {
+        buffer.mesher.plug_reach = reach;
         plugged = buffer.mesher.plug_dark_air(voxels) > 0;
     }
     let layout = source.layout();
@@ -203,7 +204,7 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
         }
     }
     mesh.dark_air_plugged = plugged;
-    if !plugged_by_lod && options.plug_dark_air_inside && !options.stitch {
+    if reach == Some(PlugReach::Interior) && !options.stitch {
         // Stitched seams zip faces in the side planes from the coarser
         // neighbour's voxels: no stubs are told apart there.
         buffer.mesher.set_aside_stubs(&mut mesh);

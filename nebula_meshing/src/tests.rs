@@ -830,11 +830,8 @@ proptest! {
         axis in 0usize..3,
         covered_record in any::<bool>(),
     ) {
-        let plugging = Plugging {
-            reaches: [Some(mesher::PlugReach::Interior); 2],
-            covered_record,
-            stubs: HiddenStubs::WhereClosed,
-        };
+        let plugging =
+            Plugging { stubs: HiddenStubs::WhereClosed, ..Plugging::both(mesher::PlugReach::Interior, covered_record) };
         prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
     }
 
