@@ -142,9 +142,10 @@ pub struct ChunkMesh {
     /// Meshed plugged inside
     /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)).
     pub(crate) plugged_inside: bool,
-    /// Some dark air this chunk shares with a neighbour borders its own
-    /// unplugged air ([`ChunkMesh::stubs_exposed`]).
+    /// Its stubs must be drawn: [`ChunkMesh::stubs_exposed`].
     pub(crate) stubs_exposed: bool,
+    /// [`ChunkMesh::pockets_beyond`].
+    pub(crate) pockets_beyond: [bool; 2],
 }
 
 impl ChunkMesh {
@@ -169,6 +170,7 @@ impl ChunkMesh {
             stub_ranges: [0..0, 0..0, 0..0, 0..0, 0..0, 0..0],
             plugged_inside: false,
             stubs_exposed: false,
+            pockets_beyond: [false; 2],
         }
     }
 
@@ -186,14 +188,30 @@ impl ChunkMesh {
         self.plugged_inside
     }
 
-    /// Whether a pocket of dark air the chunk shares with a neighbour, off
-    /// its other sides, borders the chunk's own unplugged air (a lit
-    /// shaft beside a side): seen through that air, so the neighbour,
-    /// which cannot see this chunk's voxels, draws its stubs towards it
+    /// Whether a pocket of dark air the chunk shares with a horizontal
+    /// neighbour, off its other horizontal sides, borders the chunk's own
+    /// unplugged air (a lit shaft beside a side): seen through that air, so
+    /// the neighbour, which cannot see this chunk's voxels, draws its stubs
+    /// towards it
     /// ([`ChunkDraw::hidden_stubs`](crate::ChunkDraw::hidden_stubs)).
     #[must_use]
     pub fn stubs_exposed(&self) -> bool {
         self.stubs_exposed
+    }
+
+    /// Of a chunk plugged inside: whether a pocket of air in the layers it
+    /// shares with a horizontal neighbour that is no stub here (lit
+    /// somewhere, or reaching another side's layers) is dark in the layers
+    /// shared with the chunk above (`[0]`) or below (`[1]`). A chunk of
+    /// that layer, in this column or the neighbour's, may see its part of
+    /// the pocket as a stub, which must then be drawn: a renderer leaves
+    /// out no stub between two columns where one holds such a chunk and
+    /// either holds the layer it reaches into. (A chunk plugged inside
+    /// plugs the layers it shares radially, so its column's chunks hold
+    /// one pocket between them.)
+    #[must_use]
+    pub fn pockets_beyond(&self) -> [bool; 2] {
+        self.pockets_beyond
     }
 
     /// Moves the surface triangles around stubs out of their side ranges

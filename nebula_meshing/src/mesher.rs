@@ -151,6 +151,10 @@ pub struct ChunkMesher {
     /// Whether some dark air a side shares, off the other sides, borders
     /// this chunk's unplugged air ([`ChunkMesher::find_stubs`]).
     pub(crate) stubs_exposed: bool,
+    /// Whether a pocket of dark air in a horizontal side's shared layers
+    /// that is no stub reaches the layers shared with the chunk above
+    /// (`[0]`) or below (`[1]`) ([`ChunkMesher::find_stubs`]).
+    pub(crate) pockets_beyond: [bool; 2],
     /// How far [`ChunkMesher::plug_dark_air`] reaches towards the sides.
     pub(crate) plug_reach: PlugReach,
     /// Scratch of the flat regions' inner vertices' removal.
@@ -177,12 +181,16 @@ pub(crate) enum PlugReach {
     /// a finer neighbour reads this chunk's boundary layer from the source
     /// and closes the seam against it ([`crate::stitch`]).
     OffSides,
-    /// One voxel off every side, radial ones too: every layer the chunk
-    /// shares with a neighbour stays as the source has it, so it closes up
-    /// against any neighbour, plugged or not (a tunnel crossing a side
-    /// keeps a voxel-deep stub there, capped by the plug), for a chunk
-    /// plugged by a choice its neighbours need not share
+    /// One voxel off every horizontal side, as `OffSides`: the layers the
+    /// chunk shares with its horizontal neighbours stay as the source has
+    /// them, so it closes up against any neighbour there, plugged or not (a
+    /// tunnel crossing a side keeps a voxel-deep stub, capped by the plug),
+    /// for a chunk plugged by a choice its horizontal neighbours need not
+    /// share
     /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)).
+    /// Radially it plugs as `Padding` does, so the chunks of its column
+    /// must all plug inside or all not (the streamer swaps a column's
+    /// layers at once); its stubs are found ([`ChunkMesher::find_stubs`]).
     Interior,
     /// The chunk's own voxels alone, not its padding: a test's control
     /// (the seams open).
@@ -238,6 +246,7 @@ impl ChunkMesher {
             stub_sides: vec![0; PADDED_CHUNK_VOLUME],
             stubs_for: None,
             stubs_exposed: false,
+            pockets_beyond: [false; 2],
             plug_reach: PlugReach::Padding,
             flat_interiors: FlatInteriors::default(),
             collapse_flat_interiors: true,
@@ -266,8 +275,9 @@ impl ChunkMesher {
     /// neighbour's, and quads and boundary vertices split where materials
     /// change. (Plugs kept one voxel off every side before: every tunnel
     /// crossing a side left a voxel-deep stub of walls on both chunks, 53 %
-    /// of a narrow lens's triangles at LOD 1: they are kept only where
-    /// neighbours may not plug alike: stitched seams and
+    /// of a narrow lens's triangles at LOD 1: they are kept off the
+    /// horizontal sides only where those neighbours may not plug alike:
+    /// stitched seams and
     /// [`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside).) A chunk of another LOD
     /// shares no voxels; the skirts, as deep as the deepest cave, cover a
     /// tunnel's cross-section there, as they do where a coarse chunk is
@@ -277,6 +287,7 @@ impl ChunkMesher {
         self.plugs_for = None;
         self.stubs_for = None;
         self.stubs_exposed = false;
+        self.pockets_beyond = [false; 2];
         voxels.solid_rows(&mut self.greedy.rows);
         // Most chunks have no dark air: nothing to fill, and the meshing
         // then takes them as unplugged (open ground lit without looking).
@@ -301,10 +312,11 @@ impl ChunkMesher {
         let (bottom, top) = match self.plug_reach {
             #[cfg(test)]
             PlugReach::OwnVoxels => (low, high),
-            PlugReach::Padding | PlugReach::OffSides if voxels.covered_above((0, 0)).is_some() => {
+            PlugReach::Padding | PlugReach::OffSides | PlugReach::Interior
+                if voxels.covered_above((0, 0)).is_some() =>
+            {
                 (0, PADDED_CHUNK_SIZE)
             }
-            // Interior keeps off the radial sides whatever the record.
             _ => (SHARED_LAYERS, PADDED_CHUNK_SIZE - SHARED_LAYERS),
         };
         let slice = voxels.as_mut_slice();
@@ -340,21 +352,35 @@ impl ChunkMesher {
     }
 
     /// Of a chunk plugged inside ([`PlugReach::Interior`], its plugs
-    /// made): its stubs, side by side. A side's stubs are the pockets of
-    /// air in the two layers it shares with the neighbour there (its own
-    /// boundary layer and the padding: the same voxels both chunks hold),
-    /// connected within those layers, that are dark, lie off the layers
-    /// the chunk shares with its other neighbours, and border no air of
-    /// this chunk (its plugs around them): what a tunnel crossing the side
-    /// leaves of itself under the margin plugged inside keeps. Such a
-    /// pocket is closed by this chunk's rock on one side; where the
-    /// neighbour is plugged inside too and its rock closes the other, the
-    /// faces around it look into a cavity no eye outside the rock can
-    /// reach, and a renderer leaves both chunks' out
+    /// made): its stubs, side by side. A horizontal side's stubs are the
+    /// pockets of air in the two layers it shares with the neighbour there
+    /// (its own boundary layer and the padding: the same voxels both
+    /// chunks hold), connected within those layers, that are dark, lie off
+    /// the layers the chunk shares with its other horizontal neighbours,
+    /// and border no air of this chunk (its plugs around them): what a
+    /// tunnel crossing the side leaves of itself under the margin plugged
+    /// inside keeps. Such a pocket is closed by this chunk's rock on one
+    /// side; where the neighbour is plugged inside too and its rock closes
+    /// the other, the faces around it look into a cavity no eye outside the
+    /// rock can reach, and a renderer leaves both chunks' out
     /// ([`ChunkDraw::hidden_stubs`](crate::ChunkDraw::hidden_stubs)). A
     /// dark pocket off the other sides that borders this chunk's air (a
     /// lit shaft beside the side) is seen from here: `stubs_exposed` says
     /// so, and the neighbour then draws its stubs on that side.
+    ///
+    /// Radially the chunk plugs its padding (with a record of what covers
+    /// it; its column's chunks all plug alike), so a pocket may run up or
+    /// down into the layers shared with the chunk above or below, where
+    /// those chunks (and the neighbour's above or below) see the rest of
+    /// it. So that every chunk holding part of one agrees, a pocket of air
+    /// that is no stub here (lit somewhere, or reaching another side's
+    /// layers) with a dark voxel in the layers shared with the chunk above
+    /// or below raises `pockets_beyond` for that direction: a chunk there
+    /// may see that voxel's part of it as a stub, and must then draw it
+    /// (the streamer leaves no stub out between two columns where one
+    /// holds such a chunk and either holds the layer it reaches into).
+    /// Without a record the radial shared layers stay open, and stubs keep
+    /// off them as off the horizontal sides' ones.
     fn find_stubs(&mut self, voxels: &ChunkVoxels) {
         const SIZE: usize = PADDED_CHUNK_SIZE as usize;
         /// Cells of one side's two shared layers.
@@ -367,15 +393,17 @@ impl ChunkMesher {
         let dark = |p: [usize; 3]| p[1] < usize::from(floors[p[0] + SIZE * p[2]]);
         const SHARED: usize = SHARED_LAYERS as usize;
         let off_other_sides = |c: usize| (SHARED..SIZE - SHARED).contains(&c);
+        // The layers shared radially are plugged alike by the chunks of a
+        // column only by the source's record of what covers a chunk.
+        let recorded = voxels.covered_above((0, 0)).is_some();
         let mut seen = vec![false; SLAB];
         let (mut stack, mut pocket) = (Vec::new(), Vec::new());
-        // The layers shared radially are dark to both chunks alike only
-        // by the source's record of what covers a chunk.
-        let recorded = voxels.covered_above((0, 0)).is_some();
-        let sides = if recorded { &FaceDirection::ALL[..] } else { &FaceDirection::HORIZONTAL[..] };
-        for &side in sides {
+        for side in FaceDirection::HORIZONTAL {
             let axis = side.axis();
             let (u_axis, v_axis) = ((axis + 1) % 3, (axis + 2) % 3);
+            // Where a pocket may reach along an axis of the slab: radially
+            // anywhere (with a record), across the side off the others.
+            let within = |along: usize, c: usize| (recorded && along == 1) || off_other_sides(c);
             // Layer 0 of the slab: the chunk's own boundary layer; 1: the
             // padding. `inner`: the chunk's layer beside the slab.
             let (layers, inner) =
@@ -396,11 +424,16 @@ impl ChunkMesher {
                 seen[start] = true;
                 stack.push(first);
                 pocket.clear();
-                let (mut enclosed, mut borders_air) = (true, false);
+                // Dark voxels in the layers shared with the chunk above and
+                // below.
+                let (mut enclosed, mut borders_air, mut dark_beyond) = (true, false, [false; 2]);
                 while let Some((layer, u, v)) = stack.pop() {
                     let p = cell((layer, u, v));
                     pocket.push(at(p));
-                    enclosed &= off_other_sides(u) && off_other_sides(v) && dark(p);
+                    let is_dark = dark(p);
+                    enclosed &= within(u_axis, u) && within(v_axis, v) && is_dark;
+                    dark_beyond[0] |= is_dark && p[1] >= SIZE - SHARED;
+                    dark_beyond[1] |= is_dark && p[1] < SHARED;
                     if layer == 0 {
                         let mut beside = p;
                         beside[axis] = inner;
@@ -425,12 +458,15 @@ impl ChunkMesher {
                         }
                     }
                 }
-                if enclosed && borders_air {
-                    self.stubs_exposed = true;
-                } else if enclosed {
+                if enclosed && !borders_air {
                     for &index in &pocket {
                         self.stub_sides[index] = side as u8 + 1;
                     }
+                } else if enclosed {
+                    self.stubs_exposed = true;
+                } else if recorded {
+                    self.pockets_beyond[0] |= dark_beyond[0];
+                    self.pockets_beyond[1] |= dark_beyond[1];
                 }
             }
         }
@@ -444,6 +480,7 @@ impl ChunkMesher {
         mesh.set_aside_stubs(|air| self.stub_side(key, air));
         mesh.plugged_inside = true;
         mesh.stubs_exposed = self.stubs_for == Some(key) && self.stubs_exposed;
+        mesh.pockets_beyond = if self.stubs_for == Some(key) { self.pockets_beyond } else { [false; 2] };
     }
 
     /// The side whose stub ([`ChunkMesher::find_stubs`]) the air voxel at

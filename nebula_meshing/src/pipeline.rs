@@ -44,12 +44,15 @@ pub struct MeshOptions {
     pub plug_dark_air_from_lod: Option<u8>,
     /// Plug this chunk's dark air where `plug_dark_air_from_lod` does not
     /// (below it, or at every LOD when it is `None`), one voxel off every
-    /// side: the layers it shares with its neighbours stay
-    /// as the source has them, so neighbours that do not plug close up
-    /// against it (a tunnel crossing a side keeps a voxel-deep stub, capped
-    /// dark). For a streamer choosing chunk by chunk: a narrow lens draws
-    /// LOD 0 kilometres away, where a cave shows only through its mouths
-    /// as it does from LOD 1 in a wider view.
+    /// horizontal side: the layers it shares with its horizontal
+    /// neighbours stay as the source has them, so neighbours that do not
+    /// plug close up against it (a tunnel crossing a side keeps a
+    /// voxel-deep stub, capped dark). Radially it plugs its padding too
+    /// (with the source's record of what covers a chunk), so the chunks of
+    /// one column must be meshed all with it or all without. For a
+    /// streamer choosing column by column: a narrow lens draws LOD 0
+    /// kilometres away, where a cave shows only through its mouths as it
+    /// does from LOD 1 in a wider view.
     pub plug_dark_air_inside: bool,
 }
 

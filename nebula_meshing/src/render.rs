@@ -364,6 +364,8 @@ pub struct RenderMesh {
     pub plugged_inside: bool,
     /// [`ChunkMesh::stubs_exposed`].
     pub stubs_exposed: bool,
+    /// [`ChunkMesh::pockets_beyond`].
+    pub pockets_beyond: [bool; 2],
 }
 
 impl RenderMesh {
@@ -515,6 +517,7 @@ impl ChunkMesh {
             dark_air_plugged: self.dark_air_plugged,
             plugged_inside: self.plugged_inside,
             stubs_exposed: self.stubs_exposed,
+            pockets_beyond: self.pockets_beyond,
         }
     }
 

@@ -270,7 +270,7 @@ pub(crate) fn plugs_far(tree: &LodTree, seams: SeamStrategy, column: ChunkColumn
 /// merge, meshes stay as they were made, while a narrow lens looks), or
 /// the view is no longer narrow (no focus): a wide view draws LOD 0 no
 /// farther than the merge, so nowhere plugged.
-fn unplug_due(tree: &LodTree, column: ChunkColumn, eye: DVec3) -> bool {
+pub(crate) fn unplug_due(tree: &LodTree, column: ChunkColumn, eye: DVec3) -> bool {
     let merge = 1.0 / (1.0 - tree.settings().hysteresis);
     let due = if tree.focus().is_some() { 1.0 } else { merge };
     tree.surround_split_ratio(column, eye).is_none_or(|ratio| ratio < due)
@@ -799,10 +799,9 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         let relations = drawn_relations(column).unwrap_or_else(|| predicted(column));
         // An edited chunk is meshed again by its edit's job (above), with
         // the plug the eye then asks for: one job per chunk.
-        let unplugged = cached
-            .chunks
-            .iter()
-            .filter(|(layer, chunk)| chunk.dark_air_plugged && !stale.contains_key(&column.chunk(*layer)));
+        let unplugged = cached.chunks.iter().filter(|(layer, chunk)| {
+            chunk.dark_air_plugged && !stale.contains_key(&column.chunk(*layer)) && !cached.pends(*layer)
+        });
         jobs.extend(unplugged.map(|(layer, _)| Job {
             tier: Tier::View,
             priority,

@@ -92,7 +92,7 @@ use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
 use crate::select::{
     PLANNED_VIEW_ANGLE_DEGREES, Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent,
-    least_recently_used, plugs_far,
+    least_recently_used, plugs_far, unplug_due,
 };
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
@@ -191,6 +191,9 @@ pub struct LoadedChunk<H> {
     /// A stub of it is seen through its own air
     /// ([`RenderMesh::stubs_exposed`]).
     pub stubs_exposed: bool,
+    /// A pocket that is no stub reaches the chunk above or below
+    /// ([`RenderMesh::pockets_beyond`]).
+    pub pockets_beyond: [bool; 2],
 }
 
 impl<H: MeshHandle> LoadedChunk<H> {
@@ -214,6 +217,7 @@ impl<H: MeshHandle> LoadedChunk<H> {
             dark_air_plugged: mesh.dark_air_plugged,
             plugged_inside: mesh.plugged_inside,
             stubs_exposed: mesh.stubs_exposed,
+            pockets_beyond: mesh.pockets_beyond,
             cpu: keep_cpu.then(|| Box::new(mesh)),
             made_for: SAME_ALL_ROUND,
         }
@@ -222,6 +226,22 @@ impl<H: MeshHandle> LoadedChunk<H> {
     fn held(&self) -> Held {
         let renderer_bytes = self.handle.bytes();
         Held { chunks: 1, bytes: renderer_bytes + self.cpu.as_deref().map_or(0, RenderMesh::bytes), renderer_bytes }
+    }
+}
+
+/// Which plug choice a mesh holds its column to: `Some(true)` for one
+/// plugged inside that filled dark air
+/// ([`MeshOptions::plug_dark_air_inside`]: it plugs the layers it shares
+/// with the chunks above and below, which must then be plugged so too),
+/// `Some(false)` for one not plugged inside (those layers as the source
+/// has them), `None` for one plugged inside that filled nothing (the same
+/// mesh either way). A column is never drawn with both: a tunnel crossing
+/// from one layer into the other would show no wall at their boundary.
+pub(crate) fn plug_choice<H>(chunk: &LoadedChunk<H>) -> Option<bool> {
+    match (chunk.plugged_inside, chunk.dark_air_plugged) {
+        (true, true) => Some(true),
+        (true, false) => None,
+        (false, _) => Some(false),
     }
 }
 
@@ -285,6 +305,11 @@ pub(crate) struct CachedColumn<H> {
     pub(crate) last_used: u64,
     /// Its wall planes and neighbours ([`ColumnSides`]).
     pub(crate) sides: ColumnSides,
+    /// Meshes made with the other plug choice than the column's drawn ones
+    /// ([`plug_choice`]), by layer, with the voxels' generation they were
+    /// made from: held back until every layer has one, then drawn all at
+    /// once ([`MeshCache::insert`]). Counted in `held`.
+    pub(crate) pending: Vec<(i32, u64, LoadedChunk<H>)>,
 }
 
 impl<H: MeshHandle> CachedColumn<H> {
@@ -305,7 +330,21 @@ impl<H: MeshHandle> CachedColumn<H> {
             held: Held::default(),
             last_used: frame,
             sides: ColumnSides::of(voxels.layout(), column, tree.node_bounds(column)),
+            pending: Vec::new(),
         }
+    }
+
+    /// The plug choice its drawn meshes were made with ([`plug_choice`]):
+    /// `Some(false)` where one was not plugged inside, else `Some(true)`
+    /// where one was, `None` where none says.
+    pub(crate) fn plug_choice(&self) -> Option<bool> {
+        let choices = || self.chunks.iter().filter_map(|(_, chunk)| plug_choice(chunk));
+        if choices().any(|choice| !choice) { Some(false) } else { choices().next() }
+    }
+
+    /// Whether a mesh of `layer` waits in `pending`.
+    pub(crate) fn pends(&self, layer: i32) -> bool {
+        self.pending.iter().any(|(l, _, _)| *l == layer)
     }
 
     /// The radius of the top of its highest layer held: every face of the
@@ -579,6 +618,11 @@ pub struct MeshCache<H> {
     /// voxels and is thrown away when collected, never cached as current
     /// (held only until then: a job taken after the edit reads its voxels).
     required: HashMap<ChunkKey, u64>,
+    /// Whether a column's meshes of the other plug choice wait until every
+    /// layer has one ([`MeshCache::insert`]); a test turns it off to see
+    /// its check fail.
+    #[cfg(test)]
+    pub(crate) one_choice_per_column: bool,
 }
 
 impl<H: MeshHandle> MeshCache<H> {
@@ -651,23 +695,77 @@ impl<H: MeshHandle> MeshCache<H> {
         self.held.bytes
     }
 
-    /// Holds `chunk` as layer `layer` of `column` (a column already in the
-    /// cache), in place of any mesh it had.
-    fn insert(&mut self, column: ChunkColumn, layer: i32, chunk: LoadedChunk<H>) {
-        let Some(cached) = unshared(&mut self.columns).get_mut(&column) else { return };
+    /// Holds `chunk`, made from the voxels of `generation`, as layer
+    /// `layer` of `column` (a column already in the cache), in place of
+    /// any mesh it had, and returns the layers (with their generations)
+    /// that are drawn now. A mesh whose plug choice ([`plug_choice`])
+    /// differs from the column's other drawn meshes waits in
+    /// [`CachedColumn::pending`] instead, and the column's pending meshes
+    /// are drawn all at once when, with them in place, the column holds
+    /// one choice: a column plugged inside is meshed open layer by layer,
+    /// but drawn so only when every layer is.
+    fn insert(&mut self, column: ChunkColumn, layer: i32, generation: u64, chunk: LoadedChunk<H>) -> Vec<(i32, u64)> {
+        let Some(cached) = unshared(&mut self.columns).get_mut(&column) else { return Vec::new() };
         let held = chunk.held();
-        if let Some(old) = cached.chunks.insert(layer, chunk) {
+        cached.held.add(held);
+        self.held.add(held);
+        // A pending mesh of the layer is superseded either way.
+        if let Some(at) = cached.pending.iter().position(|(l, _, _)| *l == layer) {
+            let (_, _, old) = cached.pending.swap_remove(at);
             cached.held.sub(old.held());
             self.held.sub(old.held());
         }
+        let choice = plug_choice(&chunk);
+        let clashes = choice.is_some_and(|choice| {
+            cached.chunks.iter().any(|(l, other)| l != layer && plug_choice(other) == Some(!choice))
+        });
+        #[cfg(test)]
+        let clashes = clashes && self.one_choice_per_column;
+        if !clashes {
+            if let Some(old) = cached.chunks.insert(layer, chunk) {
+                cached.held.sub(old.held());
+                self.held.sub(old.held());
+            }
+            cached.recount_missing();
+            return vec![(layer, generation)];
+        }
+        cached.pending.push((layer, generation, chunk));
+        // With the pending meshes in place of their layers', one choice?
+        let choices = cached
+            .chunks
+            .iter()
+            .filter(|(l, _)| !cached.pends(*l))
+            .map(|(_, chunk)| chunk)
+            .chain(cached.pending.iter().map(|(_, _, chunk)| chunk))
+            .filter_map(plug_choice);
+        let (mut inside, mut open) = (false, false);
+        for choice in choices {
+            inside |= choice;
+            open |= !choice;
+        }
+        if inside && open {
+            return Vec::new();
+        }
+        let mut drawn = Vec::new();
+        for (layer, generation, chunk) in std::mem::take(&mut cached.pending) {
+            if let Some(old) = cached.chunks.insert(layer, chunk) {
+                cached.held.sub(old.held());
+                self.held.sub(old.held());
+            }
+            drawn.push((layer, generation));
+        }
         cached.recount_missing();
-        cached.held.add(held);
-        self.held.add(held);
+        drawn
     }
 
-    /// Drops the mesh of `key`, if held.
+    /// Drops the mesh of `key`, if held (and one pending for it).
     fn remove(&mut self, key: ChunkKey) {
         let Some(cached) = unshared(&mut self.columns).get_mut(&key.column()) else { return };
+        if let Some(at) = cached.pending.iter().position(|(l, _, _)| *l == key.layer) {
+            let (_, _, old) = cached.pending.swap_remove(at);
+            cached.held.sub(old.held());
+            self.held.sub(old.held());
+        }
         if let Some(old) = cached.chunks.remove(key.layer) {
             cached.held.sub(old.held());
             self.held.sub(old.held());
@@ -700,6 +798,13 @@ impl<H: MeshHandle> MeshCache<H> {
             }
             kept
         });
+        cached.pending.retain(|(layer, _, chunk)| {
+            let kept = keep(*layer);
+            if !kept {
+                dropped.add(chunk.held());
+            }
+            kept
+        });
         cached.recount_missing();
         cached.held.sub(dropped);
         self.held.sub(dropped);
@@ -716,8 +821,13 @@ impl<H: MeshHandle> MeshCache<H> {
     #[cfg(test)]
     fn recount(&self) -> Held {
         let mut held = Held::default();
-        for (_, chunk) in self.columns.iter().flat_map(|(_, c)| c.chunks.iter()) {
-            held.add(chunk.held());
+        for (_, cached) in self.columns.iter() {
+            for (_, chunk) in cached.chunks.iter() {
+                held.add(chunk.held());
+            }
+            for (_, _, chunk) in &cached.pending {
+                held.add(chunk.held());
+            }
         }
         held
     }
@@ -1321,6 +1431,8 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 stale: HashMap::default(),
                 gained: HashSet::default(),
                 required: HashMap::default(),
+                #[cfg(test)]
+                one_choice_per_column: true,
             },
             draw: DrawList::default(),
             times: StageTimes::default(),
@@ -1995,9 +2107,16 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         keep_most_urgent(&mut jobs);
         // Chosen now, by the eye the jobs are queued for (a plan made ahead
-        // was made for a predicted one).
+        // was made for a predicted one), and by column: a column drawn
+        // with one choice keeps it, but that one plugged inside is meshed
+        // open once due (`unplug_due`), its layers drawn so together.
         for job in &mut jobs {
-            job.plug_inside = plugs_far(&self.tree, seams, job.key.column(), eye);
+            let column = job.key.column();
+            job.plug_inside = match cache.columns.get(&column).and_then(CachedColumn::plug_choice) {
+                Some(true) => !unplug_due(&self.tree, column, eye),
+                Some(false) => false,
+                None => plugs_far(&self.tree, seams, column, eye),
+            };
         }
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
@@ -2484,9 +2603,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             .columns_mut()
             .get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
         if entry.layers.contains(&key.layer) {
-            self.cache.insert(column, key.layer, loaded);
-        }
-        if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
+            // An edit's chunk is stale until a mesh of its voxels is drawn
+            // (one held back is asked for again, with the column's choice).
+            for (layer, generation) in self.cache.insert(column, key.layer, done.generation, loaded) {
+                let drawn = column.chunk(layer);
+                if self.cache.stale.get(&drawn).is_some_and(|&wanted| generation >= wanted) {
+                    self.cache.stale.remove(&drawn);
+                }
+            }
+        } else if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
             self.cache.stale.remove(&key);
         }
         false
@@ -3100,47 +3225,67 @@ const MAX_PLAN_LATENCY: u64 = 8;
 /// Sets each drawn column's [`ChunkDraw::hidden_stubs`] by the meshes held
 /// now: a column whose chunks are all plugged inside with no stub exposed
 /// ([`LoadedChunk::plugged_inside`], [`LoadedChunk::stubs_exposed`]) leaves
-/// out its stubs radially (its layers' pockets are closed by each other's
-/// rock; a layer it does not hold is rock, sky or sealed caves) and
-/// towards each side whose same-LOD neighbour is drawn so too. Called
-/// whenever the meshes drawn may have changed (a new draw list, meshes
-/// collected): a neighbour meshed open draws its side's stubs again the
-/// frame its mesh is drawn.
+/// out its stubs towards each side whose same-LOD neighbour is drawn so
+/// too. A stub may run through every layer of the two columns (they plug
+/// the layers shared radially, so a pocket in a side's layers reaches up
+/// and down; a layer a column does not hold is rock, sky or sealed caves),
+/// so the rule goes by whole columns, and a pocket that is no stub to the
+/// chunk holding it but reaches the layer above or below
+/// ([`LoadedChunk::pockets_beyond`]) keeps the stubs of both columns drawn
+/// where either holds that layer (a chunk there may see its part of the
+/// pocket as a stub). Called whenever the meshes drawn may have changed (a
+/// new draw list, meshes collected): a neighbour meshed open draws its
+/// side's stubs again the frame its mesh is drawn.
 fn close_stubs<H: MeshHandle>(
     layout: &nebula_voxel::ChunkLayout,
     columns: &ColumnStore<H>,
     draw: &mut DrawList,
     slots: &[Option<usize>],
 ) {
-    let closed: Vec<bool> = draw
+    let cached: Vec<Option<&CachedColumn<H>>> = draw
         .columns
         .iter()
         .zip(slots)
-        .map(|((column, _), slot)| {
-            let cached = slot.and_then(|slot| columns.in_slot(slot, *column));
+        .map(|((column, _), slot)| slot.and_then(|slot| columns.in_slot(slot, *column)))
+        .collect();
+    // Whether a pocket of one of `from`'s chunks reaches a layer `into`
+    // holds.
+    let reaches = |from: &CachedColumn<H>, into: &CachedColumn<H>| {
+        from.chunks.iter().any(|(layer, chunk)| {
+            let [up, down] = chunk.pockets_beyond;
+            (up && into.chunks.contains(layer + 1)) || (down && into.chunks.contains(layer - 1))
+        })
+    };
+    let closed: Vec<bool> = cached
+        .iter()
+        .map(|cached| {
             // Every layer it draws held (one awaited is surface the eye
             // may see), plugged inside, none exposed.
             cached.is_some_and(|cached| {
                 cached.missing == 0
                     && cached.chunks.iter().next().is_some()
                     && cached.chunks.iter().all(|(_, chunk)| chunk.plugged_inside && !chunk.stubs_exposed)
+                    && !reaches(cached, cached)
             })
         })
         .collect();
-    let is_closed =
-        |column: ChunkColumn| draw.columns.binary_search_by_key(&column, |&(c, _)| c).is_ok_and(|index| closed[index]);
+    let index_of = |column: ChunkColumn| draw.columns.binary_search_by_key(&column, |&(c, _)| c).ok();
     let hidden: Vec<u8> = draw
         .columns
         .iter()
-        .zip(&closed)
-        .map(|(&(column, _), &closed)| {
-            if !closed {
-                return 0;
-            }
-            let radial = 1 << FaceDirection::PosY as u8 | 1 << FaceDirection::NegY as u8;
-            FaceDirection::HORIZONTAL.into_iter().fold(radial, |hidden, side| {
-                let across = side.face_edge().map(|edge| layout.neighbor(column.chunk(0), edge).column());
-                if across.is_some_and(is_closed) { hidden | 1 << side as u8 } else { hidden }
+        .enumerate()
+        .map(|(n, &(column, _))| {
+            let Some(own) = cached[n].filter(|_| closed[n]) else { return 0 };
+            FaceDirection::HORIZONTAL.into_iter().fold(0, |hidden, side| {
+                let across = side
+                    .face_edge()
+                    .and_then(|edge| index_of(layout.neighbor(column.chunk(0), edge).column()))
+                    .filter(|&m| closed[m])
+                    .and_then(|m| cached[m]);
+                match across {
+                    Some(other) if !reaches(own, other) && !reaches(other, own) => hidden | 1 << side as u8,
+                    _ => hidden,
+                }
             })
         })
         .collect();
@@ -3213,6 +3358,109 @@ fn predict(previous: &Camera, current: &Camera, last_step: f64, frames: u64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A mesh handle of a fixed size.
+    struct Bytes(u64);
+
+    impl MeshHandle for Bytes {
+        fn bytes(&self) -> u64 {
+            self.0
+        }
+    }
+
+    /// A cache holding `column` (layers 0 to 2, no meshes yet).
+    fn cache_of(column: ChunkColumn, one_choice_per_column: bool) -> MeshCache<Bytes> {
+        let planet = nebula_voxel::ProceduralPlanet::new(nebula_voxel::PlanetSettings::small(1)).unwrap();
+        let mut cache = MeshCache {
+            columns: Arc::default(),
+            held: Held::default(),
+            keep_cpu: false,
+            prefetch: false,
+            free_after_frames: 300,
+            max_chunks: 100_000,
+            max_bytes: u64::MAX,
+            max_upload_bytes: 1,
+            stale: HashMap::default(),
+            gained: HashSet::default(),
+            required: HashMap::default(),
+            one_choice_per_column,
+        };
+        cache.columns_mut().get_or_insert_with(column, || CachedColumn {
+            column,
+            layers: vec![0, 1, 2],
+            chunks: LayerMeshes::default(),
+            missing: 3,
+            held: Held::default(),
+            last_used: 0,
+            sides: ColumnSides::of(planet.layout(), column, None),
+            pending: Vec::new(),
+        });
+        cache
+    }
+
+    /// A mesh plugged inside or not, that filled dark air or not.
+    fn mesh(plugged_inside: bool, dark_air_plugged: bool) -> LoadedChunk<Bytes> {
+        LoadedChunk {
+            handle: Bytes(1_000),
+            surface_triangles: [0; nebula_meshing::SURFACE_PARTS],
+            skirt_triangles: [0; 4],
+            cpu: None,
+            made_for: SAME_ALL_ROUND,
+            lowest_radius: 0.0,
+            dark_air_plugged,
+            plugged_inside,
+            stubs_exposed: false,
+            pockets_beyond: [false; 2],
+        }
+    }
+
+    #[test]
+    fn a_column_plugged_inside_is_drawn_open_in_all_its_layers_at_once() {
+        // Layers 0 and 1 plugged inside, their dark air filled (each plugs
+        // the layers it shares with the other), layer 2 plugged inside
+        // with nothing to fill (the same mesh open). Meshed open layer by
+        // layer: the first open mesh waits, the column drawn plugged; with
+        // the second, both are drawn. Layer 2's mesh stands with either.
+        let column = ChunkColumn { face: CubeFace::PosZ, lod: 0, x: 3, y: 4 };
+        let drawn_choices = |cache: &MeshCache<Bytes>| -> Vec<Option<bool>> {
+            cache.columns.get(&column).unwrap().chunks.iter().map(|(_, chunk)| plug_choice(chunk)).collect()
+        };
+        let mut cache = cache_of(column, true);
+        for (layer, filled) in [(0, true), (1, true), (2, false)] {
+            assert_eq!(cache.insert(column, layer, 1, mesh(true, filled)), vec![(layer, 1)]);
+        }
+        assert_eq!(drawn_choices(&cache), [Some(true), Some(true), None]);
+        assert_eq!(cache.insert(column, 0, 2, mesh(false, false)), vec![], "the first open mesh is drawn");
+        assert_eq!(drawn_choices(&cache), [Some(true), Some(true), None]);
+        assert_eq!(cache.columns.get(&column).unwrap().plug_choice(), Some(true));
+        assert_eq!(cache.held, cache.recount(), "a mesh held back is counted");
+        assert_eq!(cache.held.chunks, 4);
+        // Made plugged again (the eye went back): drawn, the open one dropped.
+        assert_eq!(cache.insert(column, 0, 3, mesh(true, true)), vec![(0, 3)]);
+        assert!(cache.columns.get(&column).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 3));
+        // Both meshed open: drawn together.
+        assert_eq!(cache.insert(column, 1, 4, mesh(false, false)), vec![]);
+        let mut drawn = cache.insert(column, 0, 5, mesh(false, false));
+        drawn.sort_unstable();
+        assert_eq!(drawn, vec![(0, 5), (1, 4)]);
+        assert_eq!(drawn_choices(&cache), [Some(false), Some(false), None]);
+        assert_eq!(cache.columns.get(&column).unwrap().plug_choice(), Some(false));
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 3));
+        // A mesh held back goes with its chunk.
+        assert_eq!(cache.insert(column, 1, 6, mesh(true, true)), vec![]);
+        cache.remove(column.chunk(1));
+        assert!(cache.columns.get(&column).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 2));
+        // The control: each mesh drawn as it comes draws the column with
+        // both choices.
+        let mut cache = cache_of(column, false);
+        for (layer, filled) in [(0, true), (1, true)] {
+            cache.insert(column, layer, 1, mesh(true, filled));
+        }
+        cache.insert(column, 0, 2, mesh(false, false));
+        assert_eq!(drawn_choices(&cache), [Some(false), Some(true)]);
+    }
 
     fn job(priority: f64, x: u32, layer: i32) -> Job {
         Job {

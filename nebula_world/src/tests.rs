@@ -1252,13 +1252,25 @@ mod streaming {
 
     /// Of what `streamer` draws: the chunks drawn leaving out stubs
     /// (`ChunkDraw::hidden_stubs`), and those of them where a side's stubs
-    /// are left out though this chunk, or the chunk there, is drawn now
-    /// with a mesh not plugged inside or with a stub exposed, or where no
-    /// column of its LOD is drawn across the side.
+    /// are left out though no column of its LOD is drawn across the side,
+    /// or a chunk of its column or of that one is drawn now with a mesh
+    /// not plugged inside, with a stub exposed, or with a pocket that is
+    /// no stub reaching a layer either column draws
+    /// (`LoadedChunk::pockets_beyond`), or where radial stubs are left out
+    /// (a chunk plugged inside keeps none).
     fn stubs_left_out<S: VoxelSource + 'static>(streamer: &Streamer<S, Sized>) -> (usize, usize) {
-        let drawn: std::collections::HashMap<nebula_voxel::ChunkKey, bool> =
-            streamer.drawn().map(|(key, chunk, _)| (key, chunk.plugged_inside && !chunk.stubs_exposed)).collect();
-        let columns: std::collections::HashSet<_> = drawn.keys().map(|key| key.column()).collect();
+        type Column = std::collections::HashMap<i32, (bool, [bool; 2])>;
+        let mut columns: std::collections::HashMap<nebula_voxel::ChunkColumn, Column> = Default::default();
+        for (key, chunk, _) in streamer.drawn() {
+            let closed = chunk.plugged_inside && !chunk.stubs_exposed;
+            columns.entry(key.column()).or_default().insert(key.layer, (closed, chunk.pockets_beyond));
+        }
+        let reaches = |from: &Column, into: &Column| {
+            from.iter().any(|(layer, (_, [up, down]))| {
+                (*up && into.contains_key(&(layer + 1))) || (*down && into.contains_key(&(layer - 1)))
+            })
+        };
+        let closed = |column: &Column| column.values().all(|(closed, _)| *closed);
         let layout = streamer.voxels().layout();
         let (mut leaving_out, mut wrong) = (0, 0);
         for (key, _, draw) in streamer.drawn() {
@@ -1266,29 +1278,43 @@ mod streaming {
                 continue;
             }
             leaving_out += 1;
-            // Not drawn open or exposed (a layer a column does not hold
-            // is rock, sky or sealed caves).
-            let not_open = |key: nebula_voxel::ChunkKey| drawn.get(&key) != Some(&false);
+            let own = &columns[&key.column()];
             let sides_closed = nebula_math::FaceDirection::ALL.into_iter().all(|side| {
                 if draw.hidden_stubs & (1 << side as u8) == 0 {
                     return true;
                 }
-                match side.face_edge() {
-                    Some(edge) => {
-                        let across = layout.neighbor(key, edge);
-                        columns.contains(&across.column()) && not_open(across)
-                    }
-                    None => not_open(nebula_voxel::ChunkKey {
-                        layer: key.layer + if side.is_positive() { 1 } else { -1 },
-                        ..key
-                    }),
-                }
+                let Some(edge) = side.face_edge() else { return false };
+                columns.get(&layout.neighbor(key, edge).column()).is_some_and(|across| {
+                    closed(own)
+                        && closed(across)
+                        && !reaches(own, across)
+                        && !reaches(across, own)
+                        && !reaches(own, own)
+                })
             });
-            if drawn.get(&key) != Some(&true) || !sides_closed {
+            if !sides_closed {
                 wrong += 1;
             }
         }
         (leaving_out, wrong)
+    }
+
+    /// Of what `streamer` draws: the columns drawn with a chunk plugged
+    /// inside that filled dark air (it plugs the layers it shares with the
+    /// chunks above and below) and a chunk not plugged inside, and the
+    /// columns drawn with more than one layer plugged so.
+    fn columns_drawn_with_both_plug_choices<S: VoxelSource + 'static>(streamer: &Streamer<S, Sized>) -> (usize, usize) {
+        let mut columns: std::collections::HashMap<nebula_voxel::ChunkColumn, (usize, usize, usize)> =
+            Default::default();
+        for (key, chunk, _) in streamer.drawn() {
+            let entry = columns.entry(key.column()).or_default();
+            entry.0 += usize::from(chunk.plugged_inside && chunk.dark_air_plugged);
+            entry.1 += usize::from(!chunk.plugged_inside);
+            entry.2 += usize::from(chunk.plugged_inside);
+        }
+        let both = columns.values().filter(|(inside, open, _)| *inside > 0 && *open > 0).count();
+        let layered = columns.values().filter(|(inside, _, _)| *inside > 1).count();
+        (both, layered)
     }
 
     #[test]
@@ -1299,29 +1325,53 @@ mod streaming {
         // 1.5 km flight tilting down to 50 degrees (the chunks the eye
         // comes near meshed open again, those it leaves behind dropped, a
         // frame drawing the plan before while the LOD thread plans), a
-        // chunk leaves out a side's stubs only where the chunk there is
-        // drawn that frame plugged inside with no stub exposed.
+        // chunk leaves out a side's stubs only where both columns are
+        // drawn that frame plugged inside with no stub exposed and no
+        // pocket reaching a layer either draws, and no column is drawn
+        // with a layer plugged inside (its radial layers plugged) and one
+        // open; with the layers drawn as each comes, some frame does.
         let planet = Arc::new(ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap());
         let (eye, forward) = land_poses(&planet, 0x57b7, 1, (150.0, 300.0), (2.0, 4.0))[0];
         let upload = |_key: nebula_voxel::ChunkKey, mesh: &nebula_meshing::RenderMesh| Sized(mesh.bytes());
         let lens = LodSettings { screen_height_px: 200.0, fov_y_degrees: 12.0, ..LodSettings::default() };
         let camera = lens_flight(eye, forward);
-        let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
-        settle(&mut streamer, camera(0.0));
-        let (settled, wrong) = stubs_left_out(&streamer);
-        println!("settled: {settled} chunks leave out stubs");
-        assert!(settled > 100, "only {settled} chunks leave out stubs");
-        assert_eq!(wrong, 0, "settled: stubs left out beside a chunk not plugged inside");
-        let (mut most, mut frames) = (0, 0);
-        for frame in 1..=120 {
-            streamer.update(camera(f64::from(frame.min(90)) / 90.0), &mut { upload });
-            let (leaving_out, wrong) = stubs_left_out(&streamer);
-            assert_eq!(wrong, 0, "frame {frame}: stubs left out beside a chunk not plugged inside");
-            most = most.max(leaving_out);
-            frames += usize::from(leaving_out > 0);
-            std::thread::sleep(std::time::Duration::from_millis(3));
-        }
-        println!("in flight: up to {most} chunks leave out stubs, in {frames} of 120 frames");
+        let flight = || {
+            let mut streamer = Streamer::new(planet.clone(), lens, camera(0.0), 2, &mut { upload }).unwrap();
+            settle(&mut streamer, camera(0.0));
+            // One mesh drawn a frame: a column's layers come frame by frame.
+            streamer.cache.max_upload_bytes = 1;
+            let (settled, wrong) = stubs_left_out(&streamer);
+            let (both, _) = columns_drawn_with_both_plug_choices(&streamer);
+            println!("settled: {settled} chunks leave out stubs");
+            assert!(settled > 100, "only {settled} chunks leave out stubs");
+            assert_eq!((wrong, both), (0, 0), "settled");
+            let (mut most, mut frames) = (0, 0);
+            for frame in 1..=120 {
+                streamer.update(camera(f64::from(frame.min(90)) / 90.0), &mut { upload });
+                let (leaving_out, wrong) = stubs_left_out(&streamer);
+                let (both, _) = columns_drawn_with_both_plug_choices(&streamer);
+                assert_eq!(wrong, 0, "frame {frame}: stubs left out where they may be seen");
+                assert_eq!(both, 0, "frame {frame}: a column drawn with both plug choices");
+                most = most.max(leaving_out);
+                frames += usize::from(leaving_out > 0);
+                std::thread::sleep(std::time::Duration::from_millis(3));
+            }
+            // Settled where the flight ends (the columns it came near
+            // meshed open, a mesh a frame).
+            for frame in 0.. {
+                streamer.update(camera(1.0), &mut { upload });
+                let (both, _) = columns_drawn_with_both_plug_choices(&streamer);
+                assert_eq!(stubs_left_out(&streamer).1, 0, "settling: stubs left out where they may be seen");
+                assert_eq!(both, 0, "settling: a column drawn with both plug choices");
+                if streamer.settled() {
+                    break;
+                }
+                assert!(frame < 40_000, "did not settle");
+            }
+            println!("in flight: up to {most} chunks leave out stubs, in {frames} of 120 frames");
+            frames
+        };
+        let frames = flight();
         assert!(frames > 10, "stubs left out in {frames} frames only");
     }
 
