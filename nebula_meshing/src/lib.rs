@@ -77,7 +77,9 @@ pub use mesh::{ChunkMesh, MeshVertex, OutlineEdge};
 pub use mesher::ChunkMesher;
 pub use nebula_lod::{ChunkLodContext, NeighborLodRelation};
 pub use nebula_math::{DVec3, FaceDirection, Vec3};
-pub use pipeline::{ChunkMeshBuffer, MeshOptions, mesh_chunk, mesh_chunks};
+pub use pipeline::{
+    ChunkMeshBuffer, MeshOptions, PLUG_GROUP_LODS, mesh_chunk, mesh_chunks, plug_group, plug_group_across,
+};
 pub use render::{
     ChunkDraw, FrameDraw, RenderMesh, RenderVertex, SKIRT_CORNERS, SURFACE_PARTS, decode_normal, drawn_ranges,
     encode_normal, lowered, lowered_skirts, side_index, split_high_low, vertex_morph_factor,

@@ -176,13 +176,12 @@ impl ChunkMesh {
 
     /// Whether the chunk was meshed plugged inside
     /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside),
-    /// whether or not it held dark air to plug) with its stubs set apart:
-    /// its dark air lies in rock but in the layers it shares with its
-    /// neighbours, and the faces around the pockets a side keeps there
-    /// (its stubs) are surface parts of their own
-    /// ([`ChunkMesh::surface_parts`]). Not under stitched seams, whose
-    /// zips lie in the side planes: such a mesh is plugged, its stubs
-    /// drawn with the rest.
+    /// whether or not it held dark air to plug): its dark air lies in rock
+    /// but in the layers it shares with the columns of other plug groups
+    /// ([`crate::plug_group`]), and the faces around the pockets a side
+    /// keeps there (its stubs) are surface parts of their own
+    /// ([`ChunkMesh::surface_parts`]). Under stitched seams, whose zips lie
+    /// in the side planes, the stubs are drawn with the rest.
     #[must_use]
     pub fn plugged_inside(&self) -> bool {
         self.plugged_inside
@@ -312,7 +311,9 @@ impl ChunkMesh {
     /// corners' morph targets on one radial layer: their height shrinks
     /// with μ, to nothing at μ = 0); part 10 + `FaceDirection as usize`,
     /// the faces around that side's stubs, of any direction (a chunk
-    /// meshed plugged inside, [`ChunkMesh::plugged_inside`]).
+    /// meshed plugged inside, [`ChunkMesh::plugged_inside`]; horizontal
+    /// sides only, the radial ones' parts empty: it plugs what it shares
+    /// radially).
     #[must_use]
     pub fn surface_parts(&self) -> [std::ops::Range<usize>; crate::SURFACE_PARTS] {
         let mut parts: [std::ops::Range<usize>; crate::SURFACE_PARTS] = Default::default();

@@ -157,6 +157,11 @@ pub struct ChunkMesher {
     pub(crate) pockets_beyond: [bool; 2],
     /// How far [`ChunkMesher::plug_dark_air`] reaches towards the sides.
     pub(crate) plug_reach: PlugReach,
+    /// Of a chunk plugged inside ([`PlugReach::Interior`]), the horizontal
+    /// sides (as in [`FaceDirection::HORIZONTAL`]) whose neighbour is of
+    /// its plug group ([`crate::plug_group`]), plugged alike: there the
+    /// plugs reach the padding as `Padding`'s do.
+    pub(crate) padded_sides: [bool; 4],
     /// Scratch of the flat regions' inner vertices' removal.
     pub(crate) flat_interiors: FlatInteriors,
     /// Whether those are removed (tests compare with them kept).
@@ -181,16 +186,18 @@ pub(crate) enum PlugReach {
     /// a finer neighbour reads this chunk's boundary layer from the source
     /// and closes the seam against it ([`crate::stitch`]).
     OffSides,
-    /// One voxel off every horizontal side, as `OffSides`: the layers the
-    /// chunk shares with its horizontal neighbours stay as the source has
-    /// them, so it closes up against any neighbour there, plugged or not (a
-    /// tunnel crossing a side keeps a voxel-deep stub, capped by the plug),
-    /// for a chunk plugged by a choice its horizontal neighbours need not
-    /// share
+    /// One voxel off every horizontal side towards a column of another
+    /// plug group ([`crate::plug_group`]; `ChunkMesher::padded_sides`), as
+    /// `OffSides`: the layers the chunk shares with those neighbours stay
+    /// as the source has them, so it closes up against any neighbour
+    /// there, plugged or not (a tunnel crossing a side keeps a voxel-deep
+    /// stub, capped by the plug), for a chunk plugged by a choice those
+    /// neighbours need not share
     /// ([`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside)).
-    /// Radially it plugs as `Padding` does, so the chunks of its column
-    /// must all plug inside or all not (the streamer swaps a column's
-    /// layers at once); its stubs are found ([`ChunkMesher::find_stubs`]).
+    /// Radially and towards its own group it plugs as `Padding` does, so
+    /// the chunks of a group must all plug inside or all not (the streamer
+    /// swaps a group's meshes at once); the stubs of the other sides are
+    /// found ([`ChunkMesher::find_stubs`]).
     Interior,
     /// The chunk's own voxels alone, not its padding: a test's control
     /// (the seams open).
@@ -248,6 +255,7 @@ impl ChunkMesher {
             stubs_exposed: false,
             pockets_beyond: [false; 2],
             plug_reach: PlugReach::Padding,
+            padded_sides: [false; 4],
             flat_interiors: FlatInteriors::default(),
             collapse_flat_interiors: true,
         }
@@ -319,13 +327,20 @@ impl ChunkMesher {
             }
             _ => (SHARED_LAYERS, PADDED_CHUNK_SIZE - SHARED_LAYERS),
         };
+        // Plugged inside, the sides towards the chunk's own plug group
+        // reach the padding.
+        let group = |side: usize, end: u32, margin: u32| {
+            if self.plug_reach == PlugReach::Interior && self.padded_sides[side] { end } else { margin }
+        };
+        let (x_low, x_high) = (group(1, 0, low), group(0, PADDED_CHUNK_SIZE, high));
+        let (z_low, z_high) = (group(3, 0, low), group(2, PADDED_CHUNK_SIZE, high));
         let slice = voxels.as_mut_slice();
         let mut filled = 0;
-        for z in low..high {
+        for z in z_low..z_high {
             // The columns with air under their floor: the only ones with
             // anything to fill (most chunks have none, and walking each
             // column up to its floor was most of the cost).
-            let mut dark = dark_columns[z as usize] & ((1_u64 << high) - (1_u64 << low));
+            let mut dark = dark_columns[z as usize] & ((1_u64 << x_high) - (1_u64 << x_low));
             while dark != 0 {
                 let x = dark.trailing_zeros();
                 dark &= dark - 1;
@@ -398,7 +413,10 @@ impl ChunkMesher {
         let recorded = voxels.covered_above((0, 0)).is_some();
         let mut seen = vec![false; SLAB];
         let (mut stack, mut pocket) = (Vec::new(), Vec::new());
-        for side in FaceDirection::HORIZONTAL {
+        // (Towards its own plug group the padding is plugged: no dark air
+        // is left there.)
+        let sides = FaceDirection::HORIZONTAL.into_iter().zip(self.padded_sides).filter(|(_, padded)| !padded);
+        for (side, _) in sides {
             let axis = side.axis();
             let (u_axis, v_axis) = ((axis + 1) % 3, (axis + 2) % 3);
             // Where a pocket may reach along an axis of the slab: radially

@@ -199,12 +199,15 @@ pub struct ChunkDraw {
     /// morph flattens are left out too (they shrink with μ, so they must
     /// look away by more to be left out).
     pub hidden_flattening: u8,
-    /// Bit `FaceDirection as usize` set: the faces around that side's
-    /// stubs ([`ChunkMesh::plugged_inside`]) are left out. Only where the
-    /// neighbour there, of the same LOD, is drawn plugged inside too and
-    /// none of its stubs is exposed ([`ChunkMesh::stubs_exposed`]): the
-    /// two chunks' rock then closes each pocket on both sides, and what
-    /// is left out looks into a cavity inside it.
+    /// Bit `FaceDirection as usize` set (horizontal sides): the faces
+    /// around that side's stubs ([`ChunkMesh::plugged_inside`]) are left
+    /// out. Only where every chunk of the column and of the neighbouring
+    /// column of the same LOD there is drawn plugged inside, none with a
+    /// stub exposed ([`ChunkMesh::stubs_exposed`]) and none with a pocket
+    /// reaching a layer either column draws
+    /// ([`ChunkMesh::pockets_beyond`]): the chunks' rock then closes each
+    /// pocket on every side, and what is left out looks into a cavity
+    /// inside it.
     pub hidden_stubs: u8,
 }
 

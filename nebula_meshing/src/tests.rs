@@ -364,6 +364,9 @@ struct Plugging {
     covered_record: bool,
     /// Which of each chunk's stubs towards the other are left out.
     stubs: HiddenStubs,
+    /// Whether the two are of one plug group (`crate::plug_group`): chunks
+    /// plugged inside plug the padding they share.
+    grouped: bool,
 }
 
 /// Which stubs ([`ChunkMesh::plugged_inside`]) a chunk of a pair leaves out
@@ -384,12 +387,16 @@ enum HiddenStubs {
 
 impl Plugging {
     /// As streaming plugs a planet's chunks of a LOD it plugs.
-    const STREAMING: Self =
-        Self { reaches: [Some(mesher::PlugReach::Padding); 2], covered_record: true, stubs: HiddenStubs::None };
+    const STREAMING: Self = Self {
+        reaches: [Some(mesher::PlugReach::Padding); 2],
+        covered_record: true,
+        stubs: HiddenStubs::None,
+        grouped: false,
+    };
 
     /// Both chunks plugged as far as `reach`.
     const fn both(reach: mesher::PlugReach, covered_record: bool) -> Self {
-        Self { reaches: [Some(reach); 2], covered_record, stubs: HiddenStubs::None }
+        Self { reaches: [Some(reach); 2], covered_record, stubs: HiddenStubs::None, grouped: false }
     }
 }
 
@@ -463,6 +470,9 @@ fn pair_seam_defects(
         let reach = plug.and_then(|p| p.reaches[n]);
         if let Some(reach) = reach {
             mesher.plug_reach = reach;
+            // Of one plug group: the side towards the other plugs its padding.
+            let towards = FaceDirection::HORIZONTAL.map(|s| s.axis() == axis && s.is_positive() == (n == 0));
+            mesher.padded_sides = if plug.is_some_and(|p| p.grouped) { towards } else { [false; 4] };
             mesher.plug_dark_air(&mut voxels);
         }
         let mut mesh = mesher.mesh(&voxels, planet().layout()).unwrap();
@@ -646,6 +656,7 @@ fn plugs_to_the_padding_beside_an_open_neighbour_open_the_seams() {
             reaches: [Some(mesher::PlugReach::Padding), None],
             covered_record: true,
             stubs: HiddenStubs::None,
+            grouped: false,
         };
         assert!(
             seam_defects(&bits, 100, axis, canonical, Some(padding)) > 0,
@@ -656,6 +667,7 @@ fn plugs_to_the_padding_beside_an_open_neighbour_open_the_seams() {
                 reaches: [Some(mesher::PlugReach::Interior), None],
                 covered_record,
                 stubs: HiddenStubs::None,
+                grouped: false,
             };
             let defects = seam_defects(&bits, 100, axis, canonical, Some(inside));
             if axis == 1 && covered_record {
@@ -664,6 +676,56 @@ fn plugs_to_the_padding_beside_an_open_neighbour_open_the_seams() {
                 assert_eq!(defects, 0, "axis {axis}, record {covered_record}");
             }
         }
+    }
+}
+
+/// A plug group is 4 × 4 columns of a face under one ancestor two LODs
+/// up, and ends at the face's edges (the column across belongs to another
+/// face's groups), also where a face holds fewer columns than a group.
+#[test]
+fn plug_groups_are_four_by_four_columns_and_end_at_the_faces_edges() {
+    let layout = *planet().layout();
+    let column = ChunkColumn { face: CubeFace::PosY, lod: 0, x: 5, y: 10 };
+    let group: Vec<ChunkColumn> = plug_group(column).collect();
+    assert_eq!(group.len(), 16);
+    assert!(group.contains(&column) && group.iter().all(|c| (4..8).contains(&c.x) && (8..12).contains(&c.y)));
+    let across = |x: u32, y: u32, lod: u8| {
+        FaceDirection::HORIZONTAL.map(|side| plug_group_across(&layout, ChunkColumn { x, y, lod, ..column }, side))
+    };
+    // PosX, NegX, PosZ, NegZ.
+    assert_eq!(across(5, 10, 0), [true, true, true, true]);
+    assert_eq!(across(7, 8, 0), [false, true, true, false]);
+    let last = layout.chunks_per_edge(0) - 1;
+    assert_eq!(across(last, last, 0), [false, true, false, true]);
+    // A face two columns wide: no side across its edges is of the group.
+    let lod = layout.max_lod() - 1;
+    assert_eq!(layout.chunks_per_edge(lod), 2);
+    assert_eq!(across(1, 0, lod), [false, true, true, false]);
+}
+
+/// Two chunks of one plug group (`crate::plug_group`), side by side on a
+/// horizontal axis, both plugged inside: each plugs the padding it shares
+/// with the other as a LOD plugged by itself does, and the seam closes,
+/// for random caves of a few densities, with and without a record of what
+/// covers a chunk; beside one that does not plug, the seam opens (so a
+/// streamer meshes a group's chunks all plugged inside or all not).
+#[test]
+fn chunks_of_a_plug_group_plugged_inside_close_up_and_open_beside_an_open_one() {
+    let mut state = 0x6a0b_u64;
+    let bits: Vec<u8> = (0..66 * 34 * 34).map(|_| (nebula_math::unit_random(&mut state) * 256.0) as u8).collect();
+    let canonical = mesher::BoundaryVertices::Canonical;
+    let inside = Some(mesher::PlugReach::Interior);
+    for axis in [0, 2] {
+        let mut opened = 0;
+        for density in [60, 80, 100, 120, 150] {
+            for covered_record in [true, false] {
+                let both = Plugging { grouped: true, ..Plugging::both(mesher::PlugReach::Interior, covered_record) };
+                assert_eq!(seam_defects(&bits, density, axis, canonical, Some(both)), 0, "axis {axis}, {density}");
+                let beside_open = Plugging { reaches: [inside, None], ..both };
+                opened += seam_defects(&bits, density, axis, canonical, Some(beside_open));
+            }
+        }
+        assert!(opened > 0, "axis {axis}: plugged to the padding beside an open chunk, closed");
     }
 }
 
@@ -679,7 +741,8 @@ fn stubs_left_out_beside_an_open_or_exposed_neighbour_open_the_seams() {
     let bits: Vec<u8> = (0..66 * 34 * 34).map(|_| (nebula_math::unit_random(&mut state) * 256.0) as u8).collect();
     let canonical = mesher::BoundaryVertices::Canonical;
     let inside = Some(mesher::PlugReach::Interior);
-    let plugging = |other, stubs| Some(Plugging { reaches: [inside, other], covered_record: true, stubs });
+    let plugging =
+        |other, stubs| Some(Plugging { reaches: [inside, other], covered_record: true, stubs, grouped: false });
     for axis in 0..3 {
         let defects = seam_defects(&bits, 150, axis, canonical, plugging(None, HiddenStubs::Always));
         assert!(defects > 0, "axis {axis}: stubs left out beside an open neighbour, closed");
@@ -974,7 +1037,7 @@ proptest! {
         // A column's chunks share their choice.
         let other = if axis == 1 && covered_record { inside } else { other };
         let reaches = if inside_first { [inside, other] } else { [other, inside] };
-        let plugging = Plugging { reaches, covered_record, stubs: HiddenStubs::None };
+        let plugging = Plugging { reaches, covered_record, stubs: HiddenStubs::None, grouped: false };
         prop_assert_eq!(seam_defects(&bits, density, axis, mesher::BoundaryVertices::Canonical, Some(plugging)), 0);
     }
 
@@ -1940,20 +2003,30 @@ fn plugged_earth_caves_lose_their_walls_and_keep_their_mouths() {
 /// asks for LOD 0 only a narrow lens draws, kilometres away): real Earth
 /// cave chunks lose most of their triangles and say so
 /// (`ChunkMesh::dark_air_plugged`), and every voxel they share with a
-/// neighbour, on all six sides, stays as the source has it. Without the
-/// choice they are meshed whole; at LODs streaming plugs by itself the
-/// choice changes nothing (those plug to the padding, as their neighbours
-/// of the LOD do).
+/// neighbour of another plug group (`crate::plug_group`) stays as the
+/// source has it, while the rest, what they share radially and with their
+/// group included, is plugged as a LOD plugged by itself plugs it (to the
+/// padding). Without the choice they are meshed whole; at LODs streaming
+/// plugs by itself the choice changes nothing (those plug to the padding,
+/// as their neighbours of the LOD do).
 #[test]
-fn lod_0_plugged_inside_keeps_every_shared_voxel() {
+fn lod_0_plugged_inside_keeps_every_voxel_shared_with_another_group() {
     let earth = ProceduralPlanet::new(PlanetSettings::earth(3)).unwrap();
     let inside = MeshOptions { plug_dark_air_inside: true, ..MeshOptions::STREAMING };
     let context = |key: ChunkKey| ChunkLodContext::uniform(key.lod);
+    let to_the_padding = MeshOptions { plug_dark_air_from_lod: Some(0), ..MeshOptions::STREAMING };
     let mut buffer = ChunkMeshBuffer::new();
-    let (mut chunks, mut open_triangles, mut plugged_triangles) = (0, 0, 0);
-    let off_every_side = |index: usize| {
+    let (mut chunks, mut open_triangles, mut plugged_triangles, mut kept) = (0, 0, 0, 0);
+    // Whether padded voxel `index` of chunk `key` lies in the layers it
+    // shares with a column of another plug group.
+    let shared_with_another_group = |key: ChunkKey, index: usize| {
         let size = PADDED_CHUNK_SIZE as usize;
-        [index % size, index / size % size, index / (size * size)].iter().all(|&c| (2..size - 2).contains(&c))
+        let (x, z) = (index % size, index / (size * size));
+        FaceDirection::HORIZONTAL.into_iter().any(|side| {
+            let c = if side.axis() == 0 { x } else { z };
+            let near = if side.is_positive() { c >= size - 2 } else { c < 2 };
+            near && !plug_group_across(earth.layout(), key.column(), side)
+        })
     };
     for source in random_surface_chunks(&earth, 0x10d0, 0..=0) {
         if chunks >= 12 {
@@ -1968,18 +2041,28 @@ fn lod_0_plugged_inside_keeps_every_shared_voxel() {
             continue;
         }
         chunks += 1;
-        let voxels = buffer.voxels().unwrap().as_slice();
-        for (index, (&now, &was)) in voxels.iter().zip(source.as_slice()).enumerate() {
-            assert!(now == was || off_every_side(index), "{key:?}: shared voxel {index} plugged");
-        }
+        let voxels = buffer.voxels().unwrap().clone();
         assert!(!plugged.has_t_junctions(), "{key:?}");
+        mesh_chunk(&earth, key, &context(key), to_the_padding, &mut buffer).unwrap();
+        let padded = buffer.voxels().unwrap().as_slice();
+        for (index, ((&now, &was), &padded)) in voxels.as_slice().iter().zip(source.as_slice()).zip(padded).enumerate()
+        {
+            if shared_with_another_group(key, index) {
+                assert_eq!(now, was, "{key:?}: voxel {index} shared with another group plugged");
+                kept += usize::from(was != padded);
+            } else {
+                assert_eq!(now, padded, "{key:?}: voxel {index} not plugged as to the padding");
+            }
+        }
         open_triangles += open.surface_triangle_count();
         plugged_triangles += plugged.surface_triangle_count();
     }
     println!(
-        "{chunks} Earth LOD-0 chunks with dark air: {plugged_triangles} triangles plugged inside against {open_triangles}"
+        "{chunks} Earth LOD-0 chunks with dark air: {plugged_triangles} triangles plugged inside against \
+         {open_triangles}; {kept} voxels shared with another group kept that the padding's plugs fill"
     );
     assert!(chunks >= 12, "only {chunks} chunks with caves found");
+    assert!(kept > 0, "no voxel shared with another group would have been plugged: the check sees nothing");
     assert!(2 * plugged_triangles < open_triangles, "{plugged_triangles} of {open_triangles}");
     // Where the LOD plugs by itself the choice changes nothing.
     for source in random_surface_chunks(&earth, 0x10d1, 1..=3).take(40) {

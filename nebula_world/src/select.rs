@@ -24,7 +24,7 @@ use crate::seams::{SAME_ALL_ROUND, SeamStrategy, side_relations};
 use crate::stream::{
     Across, CachedColumn, ColumnStore, DrawList, DrawOptions, Failure, Job, MAX_QUEUED_JOBS, MAX_SEA_BED_MEMO,
     MeshHandle, OpaqueSea, PREFETCH_MAX_AGE_FRAMES, PREFETCH_REFRESH_FRAMES, STAND_IN_LEVEL_STEP, Tier, chunk_draw,
-    column_layers, drawn_across, relations_across,
+    column_layers, drawn_across, group_plug_choice, plug_choice, relations_across,
 };
 
 /// How much wider than the camera's own a plan made ahead for a predicted
@@ -264,6 +264,14 @@ pub(crate) fn plugs_far(tree: &LodTree, seams: SeamStrategy, column: ChunkColumn
         && tree.surround_split_ratio(column, eye).is_some_and(|ratio| ratio * (1.0 - tree.settings().hysteresis) > 1.0)
 }
 
+/// Whether the meshes of `column`'s plug group
+/// ([`nebula_meshing::plug_group`]) that [`plugs_far`] plugged are made
+/// again whole with the eye at `eye`: [`unplug_due`] for one of its
+/// columns in the tree (the group's chunks plug the layers they share).
+pub(crate) fn group_unplug_due(tree: &LodTree, column: ChunkColumn, eye: DVec3) -> bool {
+    nebula_meshing::plug_group(column).any(|c| tree.node_bounds(c).is_some() && unplug_due(tree, c, eye))
+}
+
 /// Whether a held mesh of `column` that [`plugs_far`] plugged is made
 /// again whole with the eye at `eye`: the surround is drawn at its LOD
 /// there (the eye came within the split distance; between it and the
@@ -361,6 +369,16 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // ones drawn meanwhile. (LODs the strategy plugs by itself stay so.)
     let plugged_from = seams.mesh_options().plug_dark_air_from_lod.unwrap_or(0);
     let mut unplug: Vec<(ChunkColumn, &NodeBounds)> = Vec::new();
+    // By plug group: whether it holds a mesh plugged inside and is due to
+    // be meshed open.
+    let mut unplug_groups: HashMap<ChunkColumn, bool> = HashMap::default();
+    let mut group_due = |leaf: ChunkColumn| {
+        leaf.lod < plugged_from
+            && *unplug_groups.entry(nebula_meshing::plug_group(leaf).next().unwrap_or(leaf)).or_insert_with(|| {
+                let held = nebula_meshing::plug_group(leaf).filter_map(|c| columns.get(&c));
+                group_plug_choice(held) == Some(true) && group_unplug_due(tree, leaf, eye)
+            })
+    };
     // Leaves behind the terrain's horizon are drawn as their coarsest
     // ancestor that is hidden too: a few coarse chunks where the selection
     // has thousands the eye cannot see. Coarse, not left out: where a
@@ -534,13 +552,16 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             used.push((slot, leaf));
             let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
             drawn.push((leaf, known));
-            if cached.chunks.iter().any(|(_, chunk)| chunk.dark_air_plugged)
-                && leaf.lod < plugged_from
-                && unplug_due(tree, leaf, eye)
-            {
+            if group_due(leaf) {
                 unplug.push((leaf, bounds));
             }
             continue;
+        }
+        // A column of a group due, waiting for a layer (meshed open, held
+        // back while the group is drawn plugged): the group is meshed
+        // open whole all the same.
+        if group_due(leaf) {
+            unplug.push((leaf, bounds));
         }
         wanted.push((leaf, (hidden == Hidden::No).then_some(bounds)));
         if let Some(finer) = children(leaf)
@@ -793,23 +814,31 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     if selection.plugs_kept {
         unplug.clear();
     }
-    for (column, bounds) in unplug {
-        let Some(cached) = columns.get(&column) else { continue };
-        let priority = priority_within(column, Some(bounds));
-        let relations = drawn_relations(column).unwrap_or_else(|| predicted(column));
-        // An edited chunk is meshed again by its edit's job (above), with
-        // the plug the eye then asks for: one job per chunk.
-        let unplugged = cached.chunks.iter().filter(|(layer, chunk)| {
-            chunk.dark_air_plugged && !stale.contains_key(&column.chunk(*layer)) && !cached.pends(*layer)
-        });
-        jobs.extend(unplugged.map(|(layer, _)| Job {
-            tier: Tier::View,
-            priority,
-            key: column.chunk(layer),
-            seams,
-            relations,
-            plug_inside: false,
-        }));
+    // Every chunk plugged inside of a group due (those of its columns
+    // not drawn too: the group is drawn open only once all are), once.
+    let mut unplugged_groups = HashSet::default();
+    for (leaf, bounds) in unplug {
+        if !unplugged_groups.insert(nebula_meshing::plug_group(leaf).next().unwrap_or(leaf)) {
+            continue;
+        }
+        let priority = priority_within(leaf, Some(bounds));
+        for column in nebula_meshing::plug_group(leaf) {
+            let Some(cached) = columns.get(&column) else { continue };
+            let relations = drawn_relations(column).unwrap_or_else(|| predicted(column));
+            // An edited chunk is meshed again by its edit's job (above),
+            // with the plug the eye then asks for: one job per chunk.
+            let unplugged = cached.chunks.iter().filter(|(layer, chunk)| {
+                plug_choice(chunk) == Some(true) && !stale.contains_key(&column.chunk(*layer)) && !cached.pends(*layer)
+            });
+            jobs.extend(unplugged.map(|(layer, _)| Job {
+                tier: Tier::View,
+                priority,
+                key: column.chunk(layer),
+                seams,
+                relations,
+                plug_inside: false,
+            }));
+        }
     }
     // Prefetching only while there is room for it: what the view needs is
     // never evicted for it. (A chunk waiting to retry a failure does not

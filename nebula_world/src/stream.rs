@@ -91,8 +91,8 @@ use crate::lod_thread::{LodThread, MadeTree, Outcome, SelectRequest};
 use crate::panic_text;
 use crate::seams::{SAME_ALL_ROUND, SeamStrategy, SideRelations, coarsest_made_for, mesh_context};
 use crate::select::{
-    PLANNED_VIEW_ANGLE_DEGREES, Plan, SelectInput, SelectSettings, Selection, job_priority, keep_most_urgent,
-    least_recently_used, plugs_far, unplug_due,
+    PLANNED_VIEW_ANGLE_DEGREES, Plan, SelectInput, SelectSettings, Selection, group_unplug_due, job_priority,
+    keep_most_urgent, least_recently_used, plugs_far,
 };
 
 /// A renderer's handle to an uploaded chunk mesh. Dropping it frees the
@@ -229,20 +229,40 @@ impl<H: MeshHandle> LoadedChunk<H> {
     }
 }
 
-/// Which plug choice a mesh holds its column to: `Some(true)` for one
+/// Which plug choice a mesh holds its plug group to: `Some(true)` for one
 /// plugged inside that filled dark air
 /// ([`MeshOptions::plug_dark_air_inside`]: it plugs the layers it shares
-/// with the chunks above and below, which must then be plugged so too),
+/// with the chunks above and below and those of its group beside it,
+/// which must then be plugged so too),
 /// `Some(false)` for one not plugged inside (those layers as the source
 /// has them), `None` for one plugged inside that filled nothing (the same
-/// mesh either way). A column is never drawn with both: a tunnel crossing
-/// from one layer into the other would show no wall at their boundary.
+/// mesh either way). A plug group ([`nebula_meshing::plug_group`]: the
+/// chunks plugged inside plug the layers they share with each other) is
+/// never drawn with both: a tunnel crossing from one chunk into the other
+/// would show no wall at their boundary.
 pub(crate) fn plug_choice<H>(chunk: &LoadedChunk<H>) -> Option<bool> {
     match (chunk.plugged_inside, chunk.dark_air_plugged) {
         (true, true) => Some(true),
         (true, false) => None,
         (false, _) => Some(false),
     }
+}
+
+/// The plug choice the meshes held for `columns` (a plug group's) were
+/// made with ([`plug_choice`]): `Some(false)` where one was not plugged
+/// inside, else `Some(true)` where one was, `None` where none says.
+pub(crate) fn group_plug_choice<'a, H: 'a>(columns: impl Iterator<Item = &'a CachedColumn<H>>) -> Option<bool> {
+    let mut choice = None;
+    for cached in columns {
+        for (_, chunk) in cached.chunks.iter() {
+            match plug_choice(chunk) {
+                Some(false) => return Some(false),
+                Some(true) => choice = Some(true),
+                None => {}
+            }
+        }
+    }
+    choice
 }
 
 /// What a column or the whole cache holds, kept up to date as chunks come
@@ -332,14 +352,6 @@ impl<H: MeshHandle> CachedColumn<H> {
             sides: ColumnSides::of(voxels.layout(), column, tree.node_bounds(column)),
             pending: Vec::new(),
         }
-    }
-
-    /// The plug choice its drawn meshes were made with ([`plug_choice`]):
-    /// `Some(false)` where one was not plugged inside, else `Some(true)`
-    /// where one was, `None` where none says.
-    pub(crate) fn plug_choice(&self) -> Option<bool> {
-        let choices = || self.chunks.iter().filter_map(|(_, chunk)| plug_choice(chunk));
-        if choices().any(|choice| !choice) { Some(false) } else { choices().next() }
     }
 
     /// Whether a mesh of `layer` waits in `pending`.
@@ -618,11 +630,11 @@ pub struct MeshCache<H> {
     /// voxels and is thrown away when collected, never cached as current
     /// (held only until then: a job taken after the edit reads its voxels).
     required: HashMap<ChunkKey, u64>,
-    /// Whether a column's meshes of the other plug choice wait until every
-    /// layer has one ([`MeshCache::insert`]); a test turns it off to see
-    /// its check fail.
+    /// Whether a plug group's meshes of the other plug choice wait until
+    /// every chunk has one ([`MeshCache::insert`]); a test turns it off to
+    /// see its check fail.
     #[cfg(test)]
-    pub(crate) one_choice_per_column: bool,
+    pub(crate) one_choice_per_group: bool,
 }
 
 impl<H: MeshHandle> MeshCache<H> {
@@ -697,64 +709,50 @@ impl<H: MeshHandle> MeshCache<H> {
 
     /// Holds `chunk`, made from the voxels of `generation`, as layer
     /// `layer` of `column` (a column already in the cache), in place of
-    /// any mesh it had, and returns the layers (with their generations)
+    /// any mesh it had, and returns the chunks (with their generations)
     /// that are drawn now. A mesh whose plug choice ([`plug_choice`])
-    /// differs from the column's other drawn meshes waits in
-    /// [`CachedColumn::pending`] instead, and the column's pending meshes
-    /// are drawn all at once when, with them in place, the column holds
-    /// one choice: a column plugged inside is meshed open layer by layer,
-    /// but drawn so only when every layer is.
-    fn insert(&mut self, column: ChunkColumn, layer: i32, generation: u64, chunk: LoadedChunk<H>) -> Vec<(i32, u64)> {
-        let Some(cached) = unshared(&mut self.columns).get_mut(&column) else { return Vec::new() };
+    /// differs from a mesh held for another chunk of its plug group
+    /// ([`nebula_meshing::plug_group`]: the layers of 4 × 4 columns) waits
+    /// in [`CachedColumn::pending`] instead, and the group's pending meshes
+    /// are drawn all at once when, with them in place, the group holds one
+    /// choice: a group plugged inside is meshed open chunk by chunk, but
+    /// drawn so only when every chunk is.
+    fn insert(
+        &mut self,
+        column: ChunkColumn,
+        layer: i32,
+        generation: u64,
+        chunk: LoadedChunk<H>,
+    ) -> Vec<(ChunkKey, u64)> {
+        let key = column.chunk(layer);
+        let columns = unshared(&mut self.columns);
+        let Some(cached) = columns.get_mut(&column) else { return Vec::new() };
         let held = chunk.held();
         cached.held.add(held);
         self.held.add(held);
-        // A pending mesh of the layer is superseded either way.
+        // A pending mesh of the chunk is superseded either way.
         if let Some(at) = cached.pending.iter().position(|(l, _, _)| *l == layer) {
             let (_, _, old) = cached.pending.swap_remove(at);
             cached.held.sub(old.held());
             self.held.sub(old.held());
         }
-        let choice = plug_choice(&chunk);
-        let clashes = choice.is_some_and(|choice| {
-            cached.chunks.iter().any(|(l, other)| l != layer && plug_choice(other) == Some(!choice))
-        });
+        let (inside, open) = group_choices(columns, column, Some(key), false);
+        let clashes = plug_choice(&chunk).is_some_and(|choice| if choice { open } else { inside });
         #[cfg(test)]
-        let clashes = clashes && self.one_choice_per_column;
-        if !clashes {
+        let clashes = clashes && self.one_choice_per_group;
+        let Some(cached) = columns.get_mut(&column) else { return Vec::new() };
+        let mut drawn = Vec::new();
+        if clashes {
+            cached.pending.push((layer, generation, chunk));
+        } else {
             if let Some(old) = cached.chunks.insert(layer, chunk) {
                 cached.held.sub(old.held());
                 self.held.sub(old.held());
             }
             cached.recount_missing();
-            return vec![(layer, generation)];
+            drawn.push((key, generation));
         }
-        cached.pending.push((layer, generation, chunk));
-        // With the pending meshes in place of their layers', one choice?
-        let choices = cached
-            .chunks
-            .iter()
-            .filter(|(l, _)| !cached.pends(*l))
-            .map(|(_, chunk)| chunk)
-            .chain(cached.pending.iter().map(|(_, _, chunk)| chunk))
-            .filter_map(plug_choice);
-        let (mut inside, mut open) = (false, false);
-        for choice in choices {
-            inside |= choice;
-            open |= !choice;
-        }
-        if inside && open {
-            return Vec::new();
-        }
-        let mut drawn = Vec::new();
-        for (layer, generation, chunk) in std::mem::take(&mut cached.pending) {
-            if let Some(old) = cached.chunks.insert(layer, chunk) {
-                cached.held.sub(old.held());
-                self.held.sub(old.held());
-            }
-            drawn.push((layer, generation));
-        }
-        cached.recount_missing();
+        drawn.extend(release_pending(columns, &mut self.held, column));
         drawn
     }
 
@@ -771,6 +769,7 @@ impl<H: MeshHandle> MeshCache<H> {
             self.held.sub(old.held());
             cached.recount_missing();
         }
+        release_pending(unshared(&mut self.columns), &mut self.held, key.column());
     }
 
     /// Awaits the layers of `column` (on screen) that have no mesh like an
@@ -808,6 +807,7 @@ impl<H: MeshHandle> MeshCache<H> {
         cached.recount_missing();
         cached.held.sub(dropped);
         self.held.sub(dropped);
+        release_pending(unshared(&mut self.columns), &mut self.held, column);
     }
 
     /// Drops `column` and its meshes.
@@ -831,6 +831,60 @@ impl<H: MeshHandle> MeshCache<H> {
         }
         held
     }
+}
+
+/// Whether the meshes of `column`'s plug group ([`nebula_meshing::plug_group`])
+/// hold a chunk plugged inside and one open ([`plug_choice`]): those drawn
+/// but `except`'s, and with `with_pending` each pending mesh in place of
+/// its chunk's.
+fn group_choices<H: MeshHandle>(
+    columns: &ColumnStore<H>,
+    column: ChunkColumn,
+    except: Option<ChunkKey>,
+    with_pending: bool,
+) -> (bool, bool) {
+    let (mut inside, mut open) = (false, false);
+    for cached in nebula_meshing::plug_group(column).filter_map(|c| columns.get(&c)) {
+        let drawn = cached
+            .chunks
+            .iter()
+            .filter(|&(l, _)| Some(cached.column.chunk(l)) != except && !(with_pending && cached.pends(l)));
+        let pending = cached.pending.iter().filter(|_| with_pending).map(|(l, _, chunk)| (*l, chunk));
+        for choice in drawn.chain(pending).filter_map(|(_, chunk)| plug_choice(chunk)) {
+            inside |= choice;
+            open |= !choice;
+        }
+    }
+    (inside, open)
+}
+
+/// Draws the pending meshes of `column`'s plug group all at once
+/// ([`CachedColumn::pending`]) where, with them in place of their chunks',
+/// the group holds one plug choice; returns the chunks drawn (with their
+/// voxels' generations). `held`: the cache's total, kept with the columns'.
+fn release_pending<H: MeshHandle>(
+    columns: &mut ColumnStore<H>,
+    held: &mut Held,
+    column: ChunkColumn,
+) -> Vec<(ChunkKey, u64)> {
+    let group: Vec<ChunkColumn> = nebula_meshing::plug_group(column).collect();
+    let waiting = group.iter().filter_map(|c| columns.get(c)).any(|cached| !cached.pending.is_empty());
+    if !waiting || group_choices(columns, column, None, true) == (true, true) {
+        return Vec::new();
+    }
+    let mut drawn = Vec::new();
+    for column in &group {
+        let Some(cached) = columns.get_mut(column) else { continue };
+        for (layer, generation, chunk) in std::mem::take(&mut cached.pending) {
+            if let Some(old) = cached.chunks.insert(layer, chunk) {
+                cached.held.sub(old.held());
+                held.sub(old.held());
+            }
+            drawn.push((column.chunk(layer), generation));
+        }
+        cached.recount_missing();
+    }
+    drawn
 }
 
 /// The cached columns, to change: never while the LOD thread plans with
@@ -872,7 +926,8 @@ pub(crate) struct Job {
     pub(crate) relations: SideRelations,
     /// Whether its dark cave air is plugged where its LOD is not plugged
     /// by itself ([`MeshOptions::plug_dark_air_inside`]): chosen as it is
-    /// queued, by the eye of that update ([`plugs_far`]).
+    /// queued, by the eye of that update and its plug group's meshes held
+    /// (see `Streamer::apply`).
     pub(crate) plug_inside: bool,
 }
 
@@ -1432,7 +1487,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 gained: HashSet::default(),
                 required: HashMap::default(),
                 #[cfg(test)]
-                one_choice_per_column: true,
+                one_choice_per_group: true,
             },
             draw: DrawList::default(),
             times: StageTimes::default(),
@@ -2107,16 +2162,25 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         }
         keep_most_urgent(&mut jobs);
         // Chosen now, by the eye the jobs are queued for (a plan made ahead
-        // was made for a predicted one), and by column: a column drawn
-        // with one choice keeps it, but that one plugged inside is meshed
-        // open once due (`unplug_due`), its layers drawn so together.
+        // was made for a predicted one), and by plug group: a group held
+        // with one choice keeps it, but one plugged inside is meshed open
+        // once due for one of its columns drawn (`unplug_due`), its chunks
+        // drawn so together (`MeshCache::insert`); a new group is plugged
+        // only where all its columns in the tree are far (`plugs_far`).
+        let mut choices: HashMap<ChunkColumn, bool> = HashMap::default();
         for job in &mut jobs {
             let column = job.key.column();
-            job.plug_inside = match cache.columns.get(&column).and_then(CachedColumn::plug_choice) {
-                Some(true) => !unplug_due(&self.tree, column, eye),
-                Some(false) => false,
-                None => plugs_far(&self.tree, seams, column, eye),
-            };
+            let group = nebula_meshing::plug_group(column).next().unwrap_or(column);
+            job.plug_inside = *choices.entry(group).or_insert_with(|| {
+                let (tree, columns) = (&self.tree, &cache.columns);
+                let held = nebula_meshing::plug_group(column).filter_map(|c| columns.get(&c));
+                let in_tree = || nebula_meshing::plug_group(column).filter(|&c| tree.node_bounds(c).is_some());
+                match group_plug_choice(held) {
+                    Some(true) => !group_unplug_due(tree, column, eye),
+                    Some(false) => false,
+                    None => in_tree().next().is_some() && in_tree().all(|c| plugs_far(tree, seams, c, eye)),
+                }
+            });
         }
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
@@ -2604,12 +2668,13 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             .get_or_insert_with(column, || CachedColumn::new(voxels, tree, column, frame, view));
         if entry.layers.contains(&key.layer) {
             // An edit's chunk is stale until a mesh of its voxels is drawn
-            // (one held back is asked for again, with the column's choice).
-            for (layer, generation) in self.cache.insert(column, key.layer, done.generation, loaded) {
-                let drawn = column.chunk(layer);
+            // (one held back is asked for again, with its group's choice).
+            for (drawn, generation) in self.cache.insert(column, key.layer, done.generation, loaded) {
                 if self.cache.stale.get(&drawn).is_some_and(|&wanted| generation >= wanted) {
                     self.cache.stale.remove(&drawn);
                 }
+                // Drawn now (a plan made ahead asks for it no more).
+                self.collected.insert(drawn);
             }
         } else if self.cache.stale.get(&key).is_some_and(|&wanted| done.generation >= wanted) {
             self.cache.stale.remove(&key);
@@ -3368,8 +3433,8 @@ mod tests {
         }
     }
 
-    /// A cache holding `column` (layers 0 to 2, no meshes yet).
-    fn cache_of(column: ChunkColumn, one_choice_per_column: bool) -> MeshCache<Bytes> {
+    /// A cache holding `columns` (layers 0 to 2 each, no meshes yet).
+    fn cache_of(columns: &[ChunkColumn], one_choice_per_group: bool) -> MeshCache<Bytes> {
         let planet = nebula_voxel::ProceduralPlanet::new(nebula_voxel::PlanetSettings::small(1)).unwrap();
         let mut cache = MeshCache {
             columns: Arc::default(),
@@ -3383,18 +3448,20 @@ mod tests {
             stale: HashMap::default(),
             gained: HashSet::default(),
             required: HashMap::default(),
-            one_choice_per_column,
+            one_choice_per_group,
         };
-        cache.columns_mut().get_or_insert_with(column, || CachedColumn {
-            column,
-            layers: vec![0, 1, 2],
-            chunks: LayerMeshes::default(),
-            missing: 3,
-            held: Held::default(),
-            last_used: 0,
-            sides: ColumnSides::of(planet.layout(), column, None),
-            pending: Vec::new(),
-        });
+        for &column in columns {
+            cache.columns_mut().get_or_insert_with(column, || CachedColumn {
+                column,
+                layers: vec![0, 1, 2],
+                chunks: LayerMeshes::default(),
+                missing: 3,
+                held: Held::default(),
+                last_used: 0,
+                sides: ColumnSides::of(planet.layout(), column, None),
+                pending: Vec::new(),
+            });
+        }
         cache
     }
 
@@ -3415,51 +3482,75 @@ mod tests {
     }
 
     #[test]
-    fn a_column_plugged_inside_is_drawn_open_in_all_its_layers_at_once() {
-        // Layers 0 and 1 plugged inside, their dark air filled (each plugs
-        // the layers it shares with the other), layer 2 plugged inside
-        // with nothing to fill (the same mesh open). Meshed open layer by
-        // layer: the first open mesh waits, the column drawn plugged; with
-        // the second, both are drawn. Layer 2's mesh stands with either.
-        let column = ChunkColumn { face: CubeFace::PosZ, lod: 0, x: 3, y: 4 };
-        let drawn_choices = |cache: &MeshCache<Bytes>| -> Vec<Option<bool>> {
+    fn a_plug_group_plugged_inside_is_drawn_open_in_all_its_chunks_at_once() {
+        // Column a's layers 0 and 1 plugged inside, their dark air filled
+        // (each plugs the layers it shares with the other), layer 2
+        // plugged inside with nothing to fill (the same mesh open); column
+        // b, beside it in its plug group, layer 0 plugged inside (it plugs
+        // the layers it shares with a); column c, of another group,
+        // plugged inside too. Meshed open chunk by chunk: the open meshes
+        // wait, the group drawn plugged; with the last, all are drawn.
+        // Layer 2's mesh stands with either, c's stays.
+        let a = ChunkColumn { face: CubeFace::PosZ, lod: 0, x: 5, y: 4 };
+        let b = ChunkColumn { x: 6, ..a };
+        let c = ChunkColumn { x: 8, ..a };
+        let planet = nebula_voxel::ProceduralPlanet::new(nebula_voxel::PlanetSettings::small(1)).unwrap();
+        assert!(nebula_meshing::plug_group_across(planet.layout(), a, FaceDirection::PosX));
+        assert!(!nebula_meshing::plug_group_across(planet.layout(), ChunkColumn { x: 7, ..a }, FaceDirection::PosX));
+        let drawn_choices = |cache: &MeshCache<Bytes>, column: ChunkColumn| -> Vec<Option<bool>> {
             cache.columns.get(&column).unwrap().chunks.iter().map(|(_, chunk)| plug_choice(chunk)).collect()
         };
-        let mut cache = cache_of(column, true);
-        for (layer, filled) in [(0, true), (1, true), (2, false)] {
-            assert_eq!(cache.insert(column, layer, 1, mesh(true, filled)), vec![(layer, 1)]);
+        let group_choice = |cache: &MeshCache<Bytes>| {
+            group_plug_choice(nebula_meshing::plug_group(a).filter_map(|column| cache.columns.get(&column)))
+        };
+        let mut cache = cache_of(&[a, b, c], true);
+        for (column, layer, filled) in [(a, 0, true), (a, 1, true), (a, 2, false), (b, 0, true), (c, 0, true)] {
+            assert_eq!(cache.insert(column, layer, 1, mesh(true, filled)), vec![(column.chunk(layer), 1)]);
         }
-        assert_eq!(drawn_choices(&cache), [Some(true), Some(true), None]);
-        assert_eq!(cache.insert(column, 0, 2, mesh(false, false)), vec![], "the first open mesh is drawn");
-        assert_eq!(drawn_choices(&cache), [Some(true), Some(true), None]);
-        assert_eq!(cache.columns.get(&column).unwrap().plug_choice(), Some(true));
+        assert_eq!(drawn_choices(&cache, a), [Some(true), Some(true), None]);
+        assert_eq!(cache.insert(a, 0, 2, mesh(false, false)), vec![], "the first open mesh is drawn");
+        assert_eq!(drawn_choices(&cache, a), [Some(true), Some(true), None]);
+        assert_eq!(group_choice(&cache), Some(true));
         assert_eq!(cache.held, cache.recount(), "a mesh held back is counted");
-        assert_eq!(cache.held.chunks, 4);
+        assert_eq!(cache.held.chunks, 6);
         // Made plugged again (the eye went back): drawn, the open one dropped.
-        assert_eq!(cache.insert(column, 0, 3, mesh(true, true)), vec![(0, 3)]);
-        assert!(cache.columns.get(&column).unwrap().pending.is_empty());
-        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 3));
-        // Both meshed open: drawn together.
-        assert_eq!(cache.insert(column, 1, 4, mesh(false, false)), vec![]);
-        let mut drawn = cache.insert(column, 0, 5, mesh(false, false));
+        assert_eq!(cache.insert(a, 0, 3, mesh(true, true)), vec![(a.chunk(0), 3)]);
+        assert!(cache.columns.get(&a).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 5));
+        // All three meshed open: drawn together, the other group's kept.
+        assert_eq!(cache.insert(a, 1, 4, mesh(false, false)), vec![]);
+        assert_eq!(cache.insert(b, 0, 5, mesh(false, false)), vec![]);
+        let mut drawn = cache.insert(a, 0, 6, mesh(false, false));
         drawn.sort_unstable();
-        assert_eq!(drawn, vec![(0, 5), (1, 4)]);
-        assert_eq!(drawn_choices(&cache), [Some(false), Some(false), None]);
-        assert_eq!(cache.columns.get(&column).unwrap().plug_choice(), Some(false));
-        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 3));
+        assert_eq!(drawn, vec![(a.chunk(0), 6), (a.chunk(1), 4), (b.chunk(0), 5)]);
+        assert_eq!(drawn_choices(&cache, a), [Some(false), Some(false), None]);
+        assert_eq!((drawn_choices(&cache, b), drawn_choices(&cache, c)), (vec![Some(false)], vec![Some(true)]));
+        assert_eq!(group_choice(&cache), Some(false));
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 5));
         // A mesh held back goes with its chunk.
-        assert_eq!(cache.insert(column, 1, 6, mesh(true, true)), vec![]);
-        cache.remove(column.chunk(1));
-        assert!(cache.columns.get(&column).unwrap().pending.is_empty());
-        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 2));
-        // The control: each mesh drawn as it comes draws the column with
-        // both choices.
-        let mut cache = cache_of(column, false);
-        for (layer, filled) in [(0, true), (1, true)] {
-            cache.insert(column, layer, 1, mesh(true, filled));
+        assert_eq!(cache.insert(a, 1, 7, mesh(true, true)), vec![]);
+        cache.remove(a.chunk(1));
+        assert!(cache.columns.get(&a).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 4));
+        // Released when what it waits for goes: a's plugged layer 0 no
+        // longer among its layers, layer 1's open mesh is drawn.
+        let mut cache = cache_of(&[a], true);
+        for layer in [0, 1] {
+            cache.insert(a, layer, 1, mesh(true, true));
         }
-        cache.insert(column, 0, 2, mesh(false, false));
-        assert_eq!(drawn_choices(&cache), [Some(false), Some(true)]);
+        assert_eq!(cache.insert(a, 1, 2, mesh(false, false)), vec![]);
+        cache.retain_layers(a, |layer| layer != 0);
+        assert_eq!(drawn_choices(&cache, a), [Some(false)]);
+        assert!(cache.columns.get(&a).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 1));
+        // The control: each mesh drawn as it comes draws the group with
+        // both choices.
+        let mut cache = cache_of(&[a, b], false);
+        for column in [a, b] {
+            cache.insert(column, 0, 1, mesh(true, true));
+        }
+        cache.insert(a, 0, 2, mesh(false, false));
+        assert_eq!((drawn_choices(&cache, a), drawn_choices(&cache, b)), (vec![Some(false)], vec![Some(true)]));
     }
 
     fn job(priority: f64, x: u32, layer: i32) -> Job {
