@@ -285,11 +285,12 @@ impl ChunkMesher {
     /// crossing a side left a voxel-deep stub of walls on both chunks, 53 %
     /// of a narrow lens's triangles at LOD 1: they are kept off the
     /// horizontal sides only where those neighbours may not plug alike:
-    /// stitched seams and
+    /// stitched seams at LODs plugged by themselves, and sides towards
+    /// another plug group of a chunk plugged inside,
     /// [`MeshOptions::plug_dark_air_inside`](crate::MeshOptions::plug_dark_air_inside).) A chunk of another LOD
     /// shares no voxels; the skirts, as deep as the deepest cave, cover a
     /// tunnel's cross-section there, as they do where a coarse chunk is
-    /// solid. Stitched seams keep the plugs off the horizontal sides.
+    /// solid.
     pub fn plug_dark_air(&mut self, voxels: &mut ChunkVoxels) -> usize {
         self.plugs.fill(0);
         self.plugs_for = None;

@@ -206,9 +206,13 @@ pub fn mesh_chunk<S: VoxelSource + ?Sized>(
     });
     if let Some(reach) = reach {
         buffer.mesher.plug_reach = reach;
+        // (A stitched side towards another LOD takes its padding from the
+        // coarser neighbour's voxels: not plugged.)
         let layout = source.layout();
-        buffer.mesher.padded_sides =
-            FaceDirection::HORIZONTAL.map(|side| plug_group_across(layout, key.column(), side));
+        buffer.mesher.padded_sides = FaceDirection::HORIZONTAL.map(|side| {
+            plug_group_across(layout, key.column(), side)
+                && (!options.stitch || context.relation(side) == NeighborLodRelation::Same)
+        });
         plugged = buffer.mesher.plug_dark_air(voxels) > 0;
     }
     let layout = source.layout();

@@ -364,7 +364,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         false => SAME_ALL_ROUND,
     };
     let (mut holes, mut stand_ins, mut max_levels) = (0, 0, 0u8);
-    // Drawn leaves holding meshes plugged far away that the eye came near
+    // Leaves (drawn or wanted) of plug groups holding meshes plugged far
+    // away that the eye came near
     // ([`plugs_far`]), with their bounds: meshed again whole, the plugged
     // ones drawn meanwhile. (LODs the strategy plugs by itself stay so.)
     let plugged_from = seams.mesh_options().plug_dark_air_from_lod.unwrap_or(0);

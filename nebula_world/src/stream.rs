@@ -325,10 +325,11 @@ pub(crate) struct CachedColumn<H> {
     pub(crate) last_used: u64,
     /// Its wall planes and neighbours ([`ColumnSides`]).
     pub(crate) sides: ColumnSides,
-    /// Meshes made with the other plug choice than the column's drawn ones
-    /// ([`plug_choice`]), by layer, with the voxels' generation they were
-    /// made from: held back until every layer has one, then drawn all at
-    /// once ([`MeshCache::insert`]). Counted in `held`.
+    /// Meshes made with the other plug choice than meshes held for its
+    /// plug group ([`plug_choice`], [`nebula_meshing::plug_group`]), by
+    /// layer, with the voxels' generation they were made from: held back
+    /// until the group holds one choice with them, then drawn all at once
+    /// ([`MeshCache::insert`], [`release_pending`]). Counted in `held`.
     pub(crate) pending: Vec<(i32, u64, LoadedChunk<H>)>,
 }
 
@@ -630,6 +631,10 @@ pub struct MeshCache<H> {
     /// voxels and is thrown away when collected, never cached as current
     /// (held only until then: a job taken after the edit reads its voxels).
     required: HashMap<ChunkKey, u64>,
+    /// Meshes held back were drawn outside collecting (a chunk, layer or
+    /// column dropped let them): the draw list's stubs are closed again
+    /// ([`close_stubs`]) before the next frame.
+    released: bool,
     /// Whether a plug group's meshes of the other plug choice wait until
     /// every chunk has one ([`MeshCache::insert`]); a test turns it off to
     /// see its check fail.
@@ -769,7 +774,7 @@ impl<H: MeshHandle> MeshCache<H> {
             self.held.sub(old.held());
             cached.recount_missing();
         }
-        release_pending(unshared(&mut self.columns), &mut self.held, key.column());
+        self.released |= !release_pending(unshared(&mut self.columns), &mut self.held, key.column()).is_empty();
     }
 
     /// Awaits the layers of `column` (on screen) that have no mesh like an
@@ -807,13 +812,16 @@ impl<H: MeshHandle> MeshCache<H> {
         cached.recount_missing();
         cached.held.sub(dropped);
         self.held.sub(dropped);
-        release_pending(unshared(&mut self.columns), &mut self.held, column);
+        self.released |= !release_pending(unshared(&mut self.columns), &mut self.held, column).is_empty();
     }
 
-    /// Drops `column` and its meshes.
+    /// Drops `column` and its meshes (the meshes its plug group's others
+    /// held back for it drawn, where they now can be).
     fn remove_column(&mut self, column: ChunkColumn) {
-        if let Some(cached) = unshared(&mut self.columns).remove(&column) {
+        let columns = unshared(&mut self.columns);
+        if let Some(cached) = columns.remove(&column) {
             self.held.sub(cached.held);
+            self.released |= !release_pending(columns, &mut self.held, column).is_empty();
         }
     }
 
@@ -1486,6 +1494,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 stale: HashMap::default(),
                 gained: HashSet::default(),
                 required: HashMap::default(),
+                released: false,
                 #[cfg(test)]
                 one_choice_per_group: true,
             },
@@ -1793,9 +1802,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             if here {
                 self.times.select_ms += self.times.plan_ms;
             }
-        } else if !self.collected.is_empty() {
+        } else if !self.collected.is_empty() || std::mem::take(&mut self.cache.released) {
             // The last frame's selection is drawn again, with the meshes
-            // just collected: its stubs closed by them.
+            // just collected (or drawn from those held back): its stubs
+            // closed by them.
             close_stubs(self.voxels.layout(), &self.cache.columns, &mut self.draw, &self.drawn_slots);
         }
         // Else the last frame's selection is drawn again (nothing it draws
@@ -1868,7 +1878,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             let eye = self.eye.position;
             face_walls(&*self.voxels, &self.cache.columns, &mut self.draw, &self.drawn_slots, eye, cull);
         }
-        if !self.collected.is_empty() {
+        if !self.collected.is_empty() || std::mem::take(&mut self.cache.released) {
             close_stubs(self.voxels.layout(), &self.cache.columns, &mut self.draw, &self.drawn_slots);
         }
         self.frames_drawn_while_planning += 1;
@@ -2118,6 +2128,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
             face_walls(voxels, &cache.columns, &mut draw, &slots, eye, (screen, morph));
         }
         close_stubs(voxels.layout(), &cache.columns, &mut draw, &slots);
+        cache.released = false;
         // A plan made ahead asks for what this update collected: asked
         // again if it still is (a failure waits for its retry below, an
         // edit's chunk is stale until a mesh of its voxels comes). Only the
@@ -2164,9 +2175,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         // Chosen now, by the eye the jobs are queued for (a plan made ahead
         // was made for a predicted one), and by plug group: a group held
         // with one choice keeps it, but one plugged inside is meshed open
-        // once due for one of its columns drawn (`unplug_due`), its chunks
-        // drawn so together (`MeshCache::insert`); a new group is plugged
-        // only where all its columns in the tree are far (`plugs_far`).
+        // once due for one of its columns in the tree (`group_unplug_due`),
+        // its chunks drawn so together (`MeshCache::insert`); a new group
+        // is plugged only where all its columns in the tree are far
+        // (`plugs_far`). A chunk whose mesh of that choice waits for its
+        // group is not meshed again (an edit's, stale, is).
         let mut choices: HashMap<ChunkColumn, bool> = HashMap::default();
         for job in &mut jobs {
             let column = job.key.column();
@@ -2182,6 +2195,15 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
                 }
             });
         }
+        jobs.retain(|job| {
+            let waits = cache.columns.get(&job.key.column()).is_some_and(|cached| {
+                cached
+                    .pending
+                    .iter()
+                    .any(|(layer, _, mesh)| *layer == job.key.layer && mesh.plugged_inside == job.plug_inside)
+            });
+            !waits || cache.stale.contains_key(&job.key)
+        });
         if let Ok(mut state) = self.meshing.state.lock() {
             state.queue.clear();
             let JobState { queue, running, .. } = &mut *state;
@@ -2194,6 +2216,10 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.times.plan_ms = millis;
         self.times.select_ms = start.elapsed().as_secs_f64() * 1e3;
         self.free(aged, least_recent);
+        if std::mem::take(&mut self.cache.released) {
+            // A column freed let its plug group's held-back meshes be drawn.
+            close_stubs(self.voxels.layout(), &self.cache.columns, &mut self.draw, &self.drawn_slots);
+        }
     }
 
     /// Updates and culls the frame thread's own tree for `camera`.
@@ -3448,6 +3474,7 @@ mod tests {
             stale: HashMap::default(),
             gained: HashSet::default(),
             required: HashMap::default(),
+            released: false,
             one_choice_per_group,
         };
         for &column in columns {
@@ -3542,6 +3569,16 @@ mod tests {
         cache.retain_layers(a, |layer| layer != 0);
         assert_eq!(drawn_choices(&cache, a), [Some(false)]);
         assert!(cache.columns.get(&a).unwrap().pending.is_empty());
+        assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 1));
+        // And when the column it waits for is freed: b's plugged mesh
+        // gone with b, a's open one is drawn.
+        let mut cache = cache_of(&[a, b], true);
+        for column in [a, b] {
+            cache.insert(column, 0, 1, mesh(true, true));
+        }
+        assert_eq!(cache.insert(a, 0, 2, mesh(false, false)), vec![]);
+        cache.remove_column(b);
+        assert_eq!(drawn_choices(&cache, a), [Some(false)]);
         assert_eq!((cache.held, cache.held.chunks), (cache.recount(), 1));
         // The control: each mesh drawn as it comes draws the group with
         // both choices.
