@@ -79,6 +79,7 @@ pub use nebula_lod::{ChunkLodContext, NeighborLodRelation};
 pub use nebula_math::{DVec3, FaceDirection, Vec3};
 pub use pipeline::{
     ChunkMeshBuffer, MeshOptions, PLUG_GROUP_LODS, mesh_chunk, mesh_chunks, plug_group, plug_group_across,
+    plug_group_key,
 };
 pub use render::{
     ChunkDraw, FrameDraw, RenderMesh, RenderVertex, SKIRT_CORNERS, SURFACE_PARTS, decode_normal, drawn_ranges,

@@ -127,8 +127,16 @@ pub const PLUG_GROUP_LODS: u8 = 2;
 /// columns past it, which hold no chunk).
 pub fn plug_group(column: ChunkColumn) -> impl Iterator<Item = ChunkColumn> {
     let side = 1_u32 << PLUG_GROUP_LODS;
-    let (x0, y0) = (column.x & !(side - 1), column.y & !(side - 1));
-    (0..side * side).map(move |n| ChunkColumn { x: x0 + n % side, y: y0 + n / side, ..column })
+    let first = plug_group_key(column);
+    (0..side * side).map(move |n| ChunkColumn { x: first.x + n % side, y: first.y + n / side, ..first })
+}
+
+/// What names `column`'s plug group ([`plug_group`]): its first column,
+/// the same for every column of the group.
+#[must_use]
+pub fn plug_group_key(column: ChunkColumn) -> ChunkColumn {
+    let mask = !((1_u32 << PLUG_GROUP_LODS) - 1);
+    ChunkColumn { x: column.x & mask, y: column.y & mask, ..column }
 }
 
 /// Whether the column across horizontal side `side` of `column` (on a

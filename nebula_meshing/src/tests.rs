@@ -689,6 +689,7 @@ fn plug_groups_are_four_by_four_columns_and_end_at_the_faces_edges() {
     let group: Vec<ChunkColumn> = plug_group(column).collect();
     assert_eq!(group.len(), 16);
     assert!(group.contains(&column) && group.iter().all(|c| (4..8).contains(&c.x) && (8..12).contains(&c.y)));
+    assert!(group.iter().all(|&c| plug_group_key(c) == ChunkColumn { x: 4, y: 8, ..column }));
     let across = |x: u32, y: u32, lod: u8| {
         FaceDirection::HORIZONTAL.map(|side| plug_group_across(&layout, ChunkColumn { x, y, lod, ..column }, side))
     };

@@ -375,10 +375,9 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     let mut unplug_groups: HashMap<ChunkColumn, bool> = HashMap::default();
     let mut group_due = |leaf: ChunkColumn| {
         leaf.lod < plugged_from
-            && *unplug_groups.entry(nebula_meshing::plug_group(leaf).next().unwrap_or(leaf)).or_insert_with(|| {
-                let held = nebula_meshing::plug_group(leaf).filter_map(|c| columns.get(&c));
-                group_plug_choice(held) == Some(true) && group_unplug_due(tree, leaf, eye)
-            })
+            && *unplug_groups
+                .entry(nebula_meshing::plug_group_key(leaf))
+                .or_insert_with(|| group_plug_choice(columns, leaf) == Some(true) && group_unplug_due(tree, leaf, eye))
     };
     // Leaves behind the terrain's horizon are drawn as their coarsest
     // ancestor that is hidden too: a few coarse chunks where the selection
@@ -819,7 +818,7 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // not drawn too: the group is drawn open only once all are), once.
     let mut unplugged_groups = HashSet::default();
     for (leaf, bounds) in unplug {
-        if !unplugged_groups.insert(nebula_meshing::plug_group(leaf).next().unwrap_or(leaf)) {
+        if !unplugged_groups.insert(nebula_meshing::plug_group_key(leaf)) {
             continue;
         }
         let priority = priority_within(leaf, Some(bounds));

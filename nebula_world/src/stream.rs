@@ -248,21 +248,16 @@ pub(crate) fn plug_choice<H>(chunk: &LoadedChunk<H>) -> Option<bool> {
     }
 }
 
-/// The plug choice the meshes held for `columns` (a plug group's) were
-/// made with ([`plug_choice`]): `Some(false)` where one was not plugged
-/// inside, else `Some(true)` where one was, `None` where none says.
-pub(crate) fn group_plug_choice<'a, H: 'a>(columns: impl Iterator<Item = &'a CachedColumn<H>>) -> Option<bool> {
-    let mut choice = None;
-    for cached in columns {
-        for (_, chunk) in cached.chunks.iter() {
-            match plug_choice(chunk) {
-                Some(false) => return Some(false),
-                Some(true) => choice = Some(true),
-                None => {}
-            }
-        }
+/// The plug choice the meshes held for `column`'s plug group
+/// ([`nebula_meshing::plug_group`]) were made with ([`plug_choice`]):
+/// `Some(false)` where one was not plugged inside, else `Some(true)` where
+/// one was, `None` where none says.
+pub(crate) fn group_plug_choice<H: MeshHandle>(columns: &ColumnStore<H>, column: ChunkColumn) -> Option<bool> {
+    match group_choices(columns, column, None, false) {
+        (_, true) => Some(false),
+        (true, false) => Some(true),
+        (false, false) => None,
     }
-    choice
 }
 
 /// What a column or the whole cache holds, kept up to date as chunks come
@@ -2183,12 +2178,11 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         let mut choices: HashMap<ChunkColumn, bool> = HashMap::default();
         for job in &mut jobs {
             let column = job.key.column();
-            let group = nebula_meshing::plug_group(column).next().unwrap_or(column);
+            let group = nebula_meshing::plug_group_key(column);
             job.plug_inside = *choices.entry(group).or_insert_with(|| {
                 let (tree, columns) = (&self.tree, &cache.columns);
-                let held = nebula_meshing::plug_group(column).filter_map(|c| columns.get(&c));
                 let in_tree = || nebula_meshing::plug_group(column).filter(|&c| tree.node_bounds(c).is_some());
-                match group_plug_choice(held) {
+                match group_plug_choice(columns, column) {
                     Some(true) => !group_unplug_due(tree, column, eye),
                     Some(false) => false,
                     None => in_tree().next().is_some() && in_tree().all(|c| plugs_far(tree, seams, c, eye)),
@@ -3527,9 +3521,7 @@ mod tests {
         let drawn_choices = |cache: &MeshCache<Bytes>, column: ChunkColumn| -> Vec<Option<bool>> {
             cache.columns.get(&column).unwrap().chunks.iter().map(|(_, chunk)| plug_choice(chunk)).collect()
         };
-        let group_choice = |cache: &MeshCache<Bytes>| {
-            group_plug_choice(nebula_meshing::plug_group(a).filter_map(|column| cache.columns.get(&column)))
-        };
+        let group_choice = |cache: &MeshCache<Bytes>| group_plug_choice(&cache.columns, a);
         let mut cache = cache_of(&[a, b, c], true);
         for (column, layer, filled) in [(a, 0, true), (a, 1, true), (a, 2, false), (b, 0, true), (c, 0, true)] {
             assert_eq!(cache.insert(column, layer, 1, mesh(true, filled)), vec![(column.chunk(layer), 1)]);

@@ -1307,7 +1307,7 @@ mod streaming {
         let mut groups: std::collections::HashMap<nebula_voxel::ChunkColumn, (bool, bool)> = Default::default();
         for (key, chunk, _) in streamer.drawn() {
             let column = key.column();
-            let entry = groups.entry(nebula_meshing::plug_group(column).next().unwrap_or(column)).or_default();
+            let entry = groups.entry(nebula_meshing::plug_group_key(column)).or_default();
             entry.0 |= chunk.plugged_inside && chunk.dark_air_plugged;
             entry.1 |= !chunk.plugged_inside;
         }
