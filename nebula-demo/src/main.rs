@@ -18,8 +18,9 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, camera};
 use nebula_demo::commands;
-use nebula_demo::headless::{Shot, render_app, report_json, shot_view, write_png};
+use nebula_demo::headless::{Shot, reference_node_budget, render_app, report_json, shot_view, write_png};
 use nebula_demo::hud::Hud;
+use nebula_lod::LodSettings;
 use nebula_render::context::GpuContext;
 use nebula_render::{DebugView, PlanetRenderer};
 
@@ -99,6 +100,12 @@ struct Args {
     /// worlds saved before coarse grids [default: 0.01 voxels].
     #[arg(long = "octave-grid-error", value_name = "M")]
     octave_grid_error: Option<f64>,
+    /// Voxels per wavelength under which coarse LODs (1 and up) leave a
+    /// noise octave out, 0 for every octave at every LOD (fewer triangles
+    /// at 8, but LOD switches pop a little: `PlanetSettings::band_limit`)
+    /// [default: 0].
+    #[arg(long = "band-limit", value_name = "VOXELS")]
+    band_limit: Option<f64>,
     /// The planet seed used: --seed or the preset's.
     #[arg(skip)]
     seed: u32,
@@ -400,6 +407,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     if let Some(octave_grid_error) = args.octave_grid_error {
         settings.octave_grid_error = octave_grid_error;
     }
+    if let Some(band_limit) = args.band_limit {
+        settings.band_limit = band_limit;
+    }
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))
     })?;
@@ -501,6 +511,7 @@ fn info(world: &World, json: bool) -> anyhow::Result<()> {
         "cave_size": s.cave_size,
         "octave_grid": s.octave_grid,
         "octave_grid_error": s.octave_grid_error,
+        "band_limit": s.band_limit,
         "terrain_version": nebula_voxel::ProceduralPlanet::TERRAIN_VERSION,
         "world": world.store().map(|store| store.path().display().to_string()),
         "unsaved_chunks": world.unsaved_chunks(),
@@ -587,8 +598,12 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
     if let Some(sse_px) = args.reference_sse {
         // The same view at a finer error, on its own streamer.
         let reference_shot = Shot { sse_px, ..shot.clone() };
+        // The tree's node bound would raise a narrow lens's reference
+        // towards the shot's own τ: it is given the nodes it asks for.
+        let lod = reference_shot.lod_settings();
+        let lod = LodSettings { max_nodes: reference_node_budget(lod.max_nodes, shot.sse_px, sse_px), ..lod };
         let gpu = GpuContext::headless()?;
-        let mut app = PlanetApp::with_voxels(voxels, reference_shot.lod_settings(), gpu, shot_view(&reference_shot)?)?;
+        let mut app = PlanetApp::with_voxels(voxels, lod, gpu, shot_view(&reference_shot)?)?;
         configure(&mut app, args);
         app.renderer_mut().set_multisampling(false);
         let reference = render_app(&mut app, &reference_shot)?;

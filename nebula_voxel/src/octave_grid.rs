@@ -140,6 +140,21 @@ impl OctaveLevels {
         Self { levels, reach }
     }
 
+    /// The same grids for the sum's first `octaves` octaves alone (the
+    /// sum without the rest, `Fractal::with_octaves`): no grid holds an
+    /// octave past them.
+    pub(crate) fn with_octaves(&self, octaves: usize) -> Self {
+        let mut levels = Vec::new();
+        for &(spacing, end) in &self.levels {
+            let from = levels.last().map_or(0, |&(_, end)| end);
+            let end = end.min(octaves);
+            if end > from {
+                levels.push((spacing, end));
+            }
+        }
+        Self { levels, reach: self.reach.iter().copied().take(octaves).collect() }
+    }
+
     /// Per octave, the farthest its noise is read from a point, lattice
     /// cells (module docs, **Bounds**).
     pub(crate) fn reach(&self) -> &[f64] {

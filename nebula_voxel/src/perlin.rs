@@ -452,6 +452,15 @@ impl Fractal {
         (0..octaves).map(|k| BranchlessPerlin::new(seed.wrapping_add(k as u32))).collect()
     }
 
+    /// The same sum without the octaves past the first `octaves` (all of
+    /// them where it has no more), scaled as this one: its value at a point
+    /// is this one's partial sum, bit for bit, and its bounds and rest
+    /// those of the octaves it keeps.
+    #[must_use]
+    pub fn with_octaves(&self, octaves: usize) -> Self {
+        Self { sources: self.sources[..octaves.min(self.sources.len())].to_vec(), ..self.clone() }
+    }
+
     /// The sum at one point.
     #[must_use]
     pub fn get(&self, point: [f64; 3]) -> f64 {

@@ -154,6 +154,22 @@ pub struct PlanetSettings {
     /// `0.01 · voxel_size` for new planets; 0 for no grid coarser than 16
     /// columns, the terrain of the planets saved before coarse grids.
     pub octave_grid_error: f64,
+    /// Voxels per wavelength under which a coarse LOD (1 and up) leaves a
+    /// noise octave out (`BandLimited`): such an octave is sampled a few
+    /// times a wavelength or less, so it adds a random bump of part of a
+    /// voxel to each column (aliasing) and, through the voxel steps it
+    /// rounds to, quads that show no terrain. 0 (every octave at every
+    /// LOD) in the presets and for the planets saved before it; 8 draws
+    /// Earth's views with 12–15 % fewer triangles and the same picture
+    /// error, but breaks the nesting the geomorph relies on (a coarse
+    /// column is no longer its far-corner fine column, so fully morphed
+    /// children are not their parent: the small planet's surface pop at a
+    /// LOD switch measured 2.76 px, over the 2.6 px its test allows),
+    /// which is why it is not on by default. What is left out moves a column by at most
+    /// [`BandLimited`]'s `dropped`, which [`VoxelSource::geometric_error`]
+    /// and the surface bounds allow for. LOD 0 keeps every octave either
+    /// way.
+    pub band_limit: f64,
 }
 
 impl PlanetSettings {
@@ -180,6 +196,7 @@ impl PlanetSettings {
             cave_size: (5.0 * voxel_size).min(radius * 0.06 / 30.0),
             octave_grid: 16.0,
             octave_grid_error: 0.01 * voxel_size,
+            band_limit: 0.0,
         }
     }
 
@@ -204,7 +221,7 @@ impl PlanetSettings {
     /// field goes here with the value that reproduces the terrain without
     /// it.
     pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] =
-        &[("cave_size", "0.0"), ("octave_grid", "0.0"), ("octave_grid_error", "0.0")];
+        &[("band_limit", "0.0"), ("cave_size", "0.0"), ("octave_grid", "0.0"), ("octave_grid_error", "0.0")];
 
     /// The settings as canonical `(name, value)` pairs, sorted by name, for
     /// a saved world's identity: independent of field order and of `Debug`
@@ -225,9 +242,11 @@ impl PlanetSettings {
             cave_size,
             octave_grid,
             octave_grid_error,
+            band_limit,
         } = self;
         let mut pairs = vec![
             ("amplitude", format!("{amplitude:?}")),
+            ("band_limit", format!("{band_limit:?}")),
             ("cave_size", format!("{cave_size:?}")),
             ("detail_amplitude", format!("{detail_amplitude:?}")),
             ("detail_size", format!("{detail_size:?}")),
@@ -275,6 +294,9 @@ pub struct ProceduralPlanet {
     /// is read (noise space): the grids' reach, for
     /// [`Self::sum_ranges`].
     widen: [Vec<f64>; 3],
+    /// Per LOD, the sums its columns are made of
+    /// ([`PlanetSettings::band_limit`]).
+    bands: Vec<BandLimited>,
     /// Heights of recently filled chunk columns, shared by their radial
     /// layers, and by clones (a memo of the same pure function, so a clone
     /// made for an edit keeps what is cached).
@@ -291,6 +313,39 @@ pub struct ProceduralPlanet {
 /// mountains 59.3–62.6 k against 61.9–63.1 k, land 53.5–55.8 k against
 /// 55.0–59.9 k), about the runs' own spread.
 const HEIGHT_CACHE_COLUMNS: usize = 1024;
+
+/// The noise sums the columns of one LOD are made of: at LOD 1 and up,
+/// without the octaves shorter than [`PlanetSettings::band_limit`] voxels
+/// of the LOD, which its columns sample a few times a wavelength or less.
+/// Such an octave adds to each column a bump of part of a voxel that
+/// follows no terrain (aliasing), which the rounding to whole voxels turns
+/// into steps and quads; left out, a coarse column's height is the
+/// smoother sum a voxel of its size can show (README, "Coarse LODs
+/// without the octaves they cannot show").
+#[derive(Clone, Debug)]
+struct BandLimited {
+    /// The continents, ridges and hills, each with the octaves it keeps
+    /// (every octave at LOD 0).
+    sums: [Fractal; 3],
+    /// Which of those come from grids (`octave_grid.rs`): the planet's
+    /// grids, none holding an octave left out.
+    levels: [OctaveLevels; 3],
+    /// How far each sum's octaves left out can move it, at most (noise
+    /// units, 0 where none is left out).
+    tails: [f64; 3],
+    /// How far, layers, they can move H at most anywhere: what
+    /// [`VoxelSource::geometric_error`] adds for them (the surface bounds
+    /// add their reach over the column's own ranges,
+    /// [`ProceduralPlanet::dropped_within`]).
+    dropped: f64,
+}
+
+impl BandLimited {
+    /// How many octaves each sum keeps.
+    fn kept(&self) -> [usize; 3] {
+        self.sums.each_ref().map(Fractal::octaves)
+    }
+}
 
 /// What a column's top material depends on besides its height.
 #[derive(Clone, Copy, Debug)]
@@ -562,8 +617,11 @@ impl ProceduralPlanet {
                 value: settings.detail_amplitude,
             });
         }
-        for (name, value) in [("octave grid", settings.octave_grid), ("octave grid error", settings.octave_grid_error)]
-        {
+        for (name, value) in [
+            ("octave grid", settings.octave_grid),
+            ("octave grid error", settings.octave_grid_error),
+            ("band limit", settings.band_limit),
+        ] {
             if !value.is_finite() {
                 return Err(VoxelError::NonFinite { name, value });
             }
@@ -639,8 +697,10 @@ impl ProceduralPlanet {
             layer_height,
             sum_steps: [0.0; 3],
             max_slope: 0.0,
+            bands: Vec::new(),
             heights: Arc::default(),
         };
+        planet.bands = (0..=max_lod).map(|lod| planet.band_limited(lod)).collect();
         let (sum_steps, max_slope) = planet.measure_slopes();
         planet.sum_steps = sum_steps;
         // Both bound the slope everywhere; the second, sum by sum, is the
@@ -651,6 +711,64 @@ impl ProceduralPlanet {
         planet.caves =
             Caves::new(planet.settings.cave_size, radius, layer_height, max_lod, planet.settings.seed, separation)?;
         Ok(planet)
+    }
+
+    /// The sums LOD `lod`'s columns are made of ([`BandLimited`]): each
+    /// keeps its octaves of a wavelength of at least
+    /// [`PlanetSettings::band_limit`] voxels of the LOD (every octave at
+    /// LOD 0, or with a band limit of 0).
+    fn band_limited(&self, lod: u8) -> BandLimited {
+        let voxel_m = self.layout.voxel_span(lod) as f64 * self.layer_height;
+        let shortest = if lod == 0 { 0.0 } else { self.settings.band_limit * voxel_m };
+        let settings = &self.settings;
+        let sums = [
+            (&self.continents, settings.feature_size),
+            (&self.ridges, settings.mountain_size),
+            (&self.hills, settings.detail_size),
+        ];
+        // A unit of noise space is the sum's size along the surface, and
+        // octave k's wavelength its size over the lacunarity to the k.
+        let kept = sums.map(|(fractal, size)| {
+            (0..fractal.octaves()).take_while(|&k| size / fractal.lacunarity().powi(k as i32) >= shortest).count()
+        });
+        // What the octaves left out add at most, each sum through H's
+        // steepest response to it anywhere.
+        let tails = [0, 1, 2].map(|n| {
+            let fractal = sums[n].0;
+            (kept[n]..fractal.octaves()).map(|k| fractal.octave_amplitude(k)).sum::<f64>()
+        });
+        let dropped = if tails.iter().all(|&t| t == 0.0) {
+            0.0
+        } else {
+            height_step(settings, SumRanges::EVERYWHERE, tails) / self.layer_height
+        };
+        BandLimited {
+            sums: [0, 1, 2].map(|n| sums[n].0.with_octaves(kept[n])),
+            levels: [0, 1, 2].map(|n| self.levels[n].with_octaves(kept[n])),
+            tails,
+            dropped,
+        }
+    }
+
+    /// How far, layers, the octaves LOD `lod`'s sums leave out
+    /// ([`BandLimited`]) can move H where the full sums lie in `ranges`:
+    /// each sum's tail through H's steepest response to it there (the
+    /// ranges widened by the tails, where the partial sums may lie), as
+    /// the slope bound goes place by place. In lowland the ridges' tail
+    /// moves nothing and the hills' little; over mountains it is most of
+    /// [`BandLimited::dropped`], the bound anywhere.
+    fn dropped_within(&self, lod: u8, ranges: SumRanges) -> f64 {
+        let tails = self.bands[usize::from(lod)].tails;
+        if tails.iter().all(|&t| t == 0.0) {
+            return 0.0;
+        }
+        let widen = |(low, high): (f64, f64), tail: f64| (low - tail, high + tail);
+        let widened = SumRanges {
+            continents: widen(ranges.continents, tails[0]),
+            ridges: widen(ranges.ridges, tails[1]),
+            hills: widen(ranges.hills, tails[2]),
+        };
+        height_step(&self.settings, widened, tails) / self.layer_height
     }
 
     /// The same planet with an empty height cache of its own (clones share
@@ -697,30 +815,43 @@ impl ProceduralPlanet {
     #[must_use]
     pub fn height_at(&self, direction: nebula_math::DVec3) -> f64 {
         let Ok((face, i, j)) = self.layout.sphere().face_coords_of(direction) else { return f64::NAN };
-        let [continents, ridges, hills] = self.sums_at_columns(face, &[[i - 0.5, j - 0.5]], &[direction], 1)[0];
+        let [continents, ridges, hills] = self.sums_at_columns(face, &[[i - 0.5, j - 0.5]], &[direction], 1, 0)[0];
         self.combine(continents, ridges, hills)
     }
 
-    /// [`grid_states`] of the three sums at `points` of `face`.
-    fn grid_states(&self, face: CubeFace, points: &[[f64; 2]], spacing: i64) -> [(usize, Vec<OctaveState>); 3] {
-        grid_states(self.layout.sphere(), face, self.gridded(), points, spacing)
+    /// [`grid_states`] of the three sums at `points` of `face`, as LOD
+    /// `band` keeps them ([`BandLimited`]).
+    fn grid_states(
+        &self,
+        face: CubeFace,
+        points: &[[f64; 2]],
+        spacing: i64,
+        band: u8,
+    ) -> [(usize, Vec<OctaveState>); 3] {
+        grid_states(self.layout.sphere(), face, self.gridded(band), points, spacing)
     }
 
-    /// The three sums as [`grid_states`] reads them.
-    fn gridded(&self) -> [GriddedSum<'_>; 3] {
-        let [continents, ridges, hills] = &self.levels;
+    /// The three sums as [`grid_states`] reads them, as LOD `band` keeps
+    /// them ([`BandLimited`]; LOD 0: H's).
+    fn gridded(&self, band: u8) -> [GriddedSum<'_>; 3] {
+        let BandLimited {
+            sums: [continents, ridges, hills],
+            levels: [continents_levels, ridges_levels, hills_levels],
+            ..
+        } = &self.bands[usize::from(band)];
         [
-            GriddedSum { fractal: &self.continents, scale: self.noise_scale, levels: continents },
-            GriddedSum { fractal: &self.ridges, scale: self.ridge_scale, levels: ridges },
-            GriddedSum { fractal: &self.hills, scale: self.detail_scale, levels: hills },
+            GriddedSum { fractal: continents, scale: self.noise_scale, levels: continents_levels },
+            GriddedSum { fractal: ridges, scale: self.ridge_scale, levels: ridges_levels },
+            GriddedSum { fractal: hills, scale: self.detail_scale, levels: hills_levels },
         ]
     }
 
     /// The three noise sums of [`Self::combine`] at `points` (LOD-0 column
     /// coordinates on `face`, whole or not) in unit `directions` (one per
-    /// point, its direction), every octave in: those of grids coarser than
-    /// `spacing` interpolated (`octave_grid.rs`), the rest evaluated at
-    /// the direction. A column of LOD `L` (its far-corner LOD-0 column)
+    /// point, its direction), every octave LOD `band` keeps in
+    /// ([`BandLimited`]; LOD 0 keeps all, H itself): those of grids
+    /// coarser than `spacing` interpolated (`octave_grid.rs`), the rest
+    /// evaluated at the direction. A column of LOD `L` (its far-corner LOD-0 column)
     /// may ask with spacing `2^L`, a whole column with the largest power
     /// of two that its indices plus one share: the same sums either way.
     fn sums_at_columns(
@@ -729,30 +860,36 @@ impl ProceduralPlanet {
         points: &[[f64; 2]],
         directions: &[nebula_math::DVec3],
         spacing: i64,
+        band: u8,
     ) -> Vec<[f64; 3]> {
+        let BandLimited { sums, levels, .. } = &self.bands[usize::from(band)];
         // Every octave direct (a node of every grid, the LOD tree's bound
         // samples among them): the sums as `Fractal::get` gives them, bit
         // for bit what the batches would.
-        if self.levels.iter().all(|levels| levels.exact_at(spacing)) {
+        if levels.iter().all(|levels| levels.exact_at(spacing)) {
             return directions
                 .iter()
-                .map(|d| self.gridded().map(|sum| sum.fractal.get((*d * sum.scale).to_array())))
+                .map(|d| {
+                    let scales = [self.noise_scale, self.ridge_scale, self.detail_scale];
+                    [0, 1, 2].map(|n| sums[n].get((*d * scales[n]).to_array()))
+                })
                 .collect();
         }
-        let resumed = self.grid_states(face, points, spacing);
-        let mut sums = vec![[0.0; 3]; points.len()];
+        let resumed = self.grid_states(face, points, spacing, band);
         let all: Vec<usize> = (0..points.len()).collect();
-        for (n, (sum, (start, states))) in self.gridded().iter().zip(&resumed).enumerate() {
+        let mut out = vec![[0.0; 3]; points.len()];
+        for (n, (sum, (start, states))) in self.gridded(band).iter().zip(&resumed).enumerate() {
+            let fractal = &sums[n];
             let noise_points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * sum.scale).to_array()).collect();
-            let mut batch = sum.fractal.resume(&noise_points, states, *start);
-            while !batch.done(sum.fractal) {
-                sum.fractal.step(&mut batch, &all);
+            let mut batch = fractal.resume(&noise_points, states, *start);
+            while !batch.done(fractal) {
+                fractal.step(&mut batch, &all);
             }
-            for (k, out) in sums.iter_mut().enumerate() {
-                out[n] = sum.fractal.bounds(&batch, k).0;
+            for (k, out) in out.iter_mut().enumerate() {
+                out[n] = fractal.bounds(&batch, k).0;
             }
         }
-        sums
+        out
     }
 
     /// The ranges of the three noise sums over a ball of directions (unit
@@ -774,7 +911,7 @@ impl ProceduralPlanet {
     /// terrain varies by hundreds of metres.
     fn sum_ranges(&self, (centre, reach): (nebula_math::DVec3, f64)) -> SumRanges {
         let [continents, ridges, hills] =
-            self.gridded().map(|sum| (sum.fractal, (centre * sum.scale).to_array(), reach * sum.scale));
+            self.gridded(0).map(|sum| (sum.fractal, (centre * sum.scale).to_array(), reach * sum.scale));
         SumRanges {
             continents: continents.0.range_near(continents.1, continents.2, &self.widen[0]),
             ridges: ridges.0.range_near(ridges.1, ridges.2, &self.widen[1]),
@@ -844,7 +981,8 @@ impl ProceduralPlanet {
     /// bounds of its height ([`Fractal::bounds`] through `combine`, which
     /// rises with each sum) hold no threshold; its height is then the
     /// middle of them, which every comparison treats as it treats H. A
-    /// column kept to the last octave has H bit for bit. Coarse voxels are
+    /// column kept to the last octave has H bit for bit (H of the octaves
+    /// the LOD keeps, [`BandLimited`]). Coarse voxels are
     /// tens to thousands of layers tall, so most columns there leave long
     /// before the octaves of a metre or less; at LOD 0 few do.
     ///
@@ -858,6 +996,8 @@ impl ProceduralPlanet {
         caves_possible: bool,
     ) -> Vec<Column> {
         let span = self.layout.voxel_span(lod) as f64;
+        // The sums as this LOD keeps them (`BandLimited`).
+        let [continents_sum, ridges_sum, hills_sum] = &self.bands[usize::from(lod)].sums;
         // The caves first: a column under a tunnel needs its exact height.
         let caves: Vec<ColumnCaves> = if caves_possible && self.caves.at_lod(lod) {
             self.caves.columns(directions, span)
@@ -874,13 +1014,9 @@ impl ProceduralPlanet {
         };
         let [continents, ridges, hills] = &resumed;
         let mut batches = [
-            self.continents.resume(
-                &points(&self.continents, continents.0, self.noise_scale),
-                &continents.1,
-                continents.0,
-            ),
-            self.ridges.resume(&points(&self.ridges, ridges.0, self.ridge_scale), &ridges.1, ridges.0),
-            self.hills.resume(&points(&self.hills, hills.0, self.detail_scale), &hills.1, hills.0),
+            continents_sum.resume(&points(continents_sum, continents.0, self.noise_scale), &continents.1, continents.0),
+            ridges_sum.resume(&points(ridges_sum, ridges.0, self.ridge_scale), &ridges.1, ridges.0),
+            hills_sum.resume(&points(hills_sum, hills.0, self.detail_scale), &hills.1, hills.0),
         ];
         let mut columns = vec![Column::UNKNOWN; directions.len()];
         let mut open: Vec<usize> = (0..directions.len()).collect();
@@ -904,7 +1040,7 @@ impl ProceduralPlanet {
         let mut eligible_rounds = 0_usize;
         loop {
             let [continents, ridges, hills] = &mut batches;
-            self.continents.step(continents, &open);
+            continents_sum.step(continents, &open);
             // The continents' bounds only narrow as octaves come in (each
             // adds at most the weight `rest` allowed for), so a column
             // whose high end is below the mountains' start stays there; a
@@ -912,9 +1048,9 @@ impl ProceduralPlanet {
             // look (its height no longer NaN) has left `open` and leaves
             // here too: `ridged` stays within `open`.
             ridged.retain(|&k| {
-                columns[k].height.is_nan() && self.continents.bounds(continents, k).1 > MOUNTAIN_START - 1e-6
+                columns[k].height.is_nan() && continents_sum.bounds(continents, k).1 > MOUNTAIN_START - 1e-6
             });
-            self.ridges.step(ridges, &ridged);
+            ridges_sum.step(ridges, &ridged);
             // The hills' octaves wait while the continents' still to come
             // can move H four times as far as theirs (through `combine`'s
             // steepest slope, and the hills' roughest where a column may
@@ -923,16 +1059,15 @@ impl ProceduralPlanet {
             // hundreds of metres tall; a plain's hills, tens). Which sums
             // are stepped changes no voxel: the looks go by the bounds.
             let roughest = if ridged.is_empty() { 1.0 } else { 1.0 + MOUNTAIN_ROUGHNESS };
-            let continents_left = amplitude * OCEAN_SLOPE * self.continents.fbm_rest(continents.octave());
-            let hills_left = detail_amplitude * roughest * self.hills.fbm_rest(hills.octave());
-            if 4.0 * hills_left >= continents_left || continents.done(&self.continents) {
-                self.hills.step(hills, &open);
+            let continents_left = amplitude * OCEAN_SLOPE * continents_sum.fbm_rest(continents.octave());
+            let hills_left = detail_amplitude * roughest * hills_sum.fbm_rest(hills.octave());
+            if 4.0 * hills_left >= continents_left || continents.done(continents_sum) {
+                hills_sum.step(hills, &open);
             }
-            let last =
-                batches[0].done(&self.continents) && batches[1].done(&self.ridges) && batches[2].done(&self.hills);
+            let last = batches[0].done(continents_sum) && batches[1].done(ridges_sum) && batches[2].done(hills_sum);
             if !last {
-                let best = 2.0 * amplitude * LAND_SLOPE * self.continents.fbm_rest(batches[0].octave())
-                    + detail_amplitude * self.hills.fbm_rest(batches[2].octave());
+                let best = 2.0 * amplitude * LAND_SLOPE * continents_sum.fbm_rest(batches[0].octave())
+                    + detail_amplitude * hills_sum.fbm_rest(batches[2].octave());
                 if best >= voxel_m {
                     continue;
                 }
@@ -943,9 +1078,9 @@ impl ProceduralPlanet {
             }
             let continents_spread = voxel_m / (LAND_SLOPE * self.settings.amplitude);
             let ends_at = |k: usize| {
-                let (c_low, c_high) = self.continents.bounds(&batches[0], k);
-                let (r_low, r_high) = self.ridges.bounds(&batches[1], k);
-                let (h_low, h_high) = self.hills.bounds(&batches[2], k);
+                let (c_low, c_high) = continents_sum.bounds(&batches[0], k);
+                let (r_low, r_high) = ridges_sum.bounds(&batches[1], k);
+                let (h_low, h_high) = hills_sum.bounds(&batches[2], k);
                 let (m_low, m_high) = (self.mountains(c_low, r_low), self.mountains(c_high, r_high));
                 LookEnds {
                     continents: (c_low, c_high),
@@ -1121,7 +1256,7 @@ impl ProceduralPlanet {
             let sphere = self.layout.sphere();
             let directions: Vec<nebula_math::DVec3> =
                 points.iter().map(|&[u, v]| sphere.direction(face, u + 0.5, v + 0.5)).collect();
-            let sums = self.sums_at_columns(face, &points, &directions, spacing);
+            let sums = self.sums_at_columns(face, &points, &directions, spacing, 0);
             let mut made = missing.iter().zip(sums).map(|(&(i, j), [c, r, h])| {
                 let height = self.combine(c, r, h) / self.layer_height;
                 debug_assert_eq!(height.to_bits(), self.column_height_layers(face, i - 1, j - 1).to_bits());
@@ -1167,7 +1302,7 @@ impl ProceduralPlanet {
         // A lattice point's column is the one below and left of it.
         let columns: Vec<[f64; 2]> = summed.iter().map(|&(i, j)| [(i - 1) as f64, (j - 1) as f64]).collect();
         debug_assert!(summed.iter().all(|&(i, j)| i % spacing == 0 && j % spacing == 0));
-        let [continents, ridges, hills] = self.grid_states(face, &columns, spacing);
+        let [continents, ridges, hills] = self.grid_states(face, &columns, spacing, 0);
         let mut batches = [
             self.continents.resume(&points(self.noise_scale), &continents.1, continents.0),
             self.ridges.resume(&points(self.ridge_scale), &ridges.1, ridges.0),
@@ -1213,7 +1348,8 @@ impl ProceduralPlanet {
         // The grids whose nodes include this column are evaluated there.
         let spacing = 1_i64 << (i + 1).trailing_zeros().min((j + 1).trailing_zeros()).min(62);
         let direction = self.layout.sphere().direction(face, i as f64 + 0.5, j as f64 + 0.5);
-        let [continents, ridges, hills] = self.sums_at_columns(face, &[[i as f64, j as f64]], &[direction], spacing)[0];
+        let [continents, ridges, hills] =
+            self.sums_at_columns(face, &[[i as f64, j as f64]], &[direction], spacing, 0)[0];
         self.combine(continents, ridges, hills) / self.layer_height
     }
 
@@ -1227,7 +1363,7 @@ impl ProceduralPlanet {
         let direction = self.layout.sample_direction(face, lod, ci, cj);
         let (owner, [u, v]) = self.sample_column(face, lod, ci, cj);
         let spacing = self.layout.voxel_span(lod);
-        let [continents, ridges, hills] = self.sums_at_columns(owner, &[[u, v]], &[direction], spacing)[0];
+        let [continents, ridges, hills] = self.sums_at_columns(owner, &[[u, v]], &[direction], spacing, lod)[0];
         let climate = Climate { sin_latitude: direction.z, continents, mountains: self.mountains(continents, ridges) };
         let caves = if self.caves.at_lod(lod) {
             self.caves.column(direction, self.layout.voxel_span(lod) as f64)
@@ -1402,8 +1538,11 @@ impl ProceduralPlanet {
         // heights at hand, a quarter of the noise is already paid. Only
         // columns on this face: a wrapped one is read in the other face's
         // frame, where the two LODs' far corners need not agree.
+        // (Only where the two LODs keep the same octaves, `BandLimited`.)
+        let same_sums = |lod: u8| self.bands[usize::from(lod)].kept() == self.bands[usize::from(column.lod)].kept();
         let parent = (column.lod < self.layout.max_lod())
             .then(|| ChunkColumn { face: column.face, lod: column.lod + 1, x: column.x / 2, y: column.y / 2 })
+            .filter(|parent| same_sums(parent.lod))
             .and_then(|parent| self.heights.get(parent).map(|heights| (parent, heights)));
         let from_parent = |i: i64, j: i64| {
             let (parent, heights) = parent.as_ref()?;
@@ -1494,7 +1633,7 @@ impl ProceduralPlanet {
         }
         // The grids' octaves, face by face (a chunk at a face edge has
         // padding owned by its neighbours).
-        let resumed = self.grid_states_by_face(&samples, span_columns);
+        let resumed = self.grid_states_by_face(&samples, span_columns, column.lod);
         // No cave where the column's relief (its chunk column and a voxel
         // beyond: the padding) keeps every voxel under the caves' sea
         // margin or out of every cave region (`column_relief`, which the
@@ -1566,14 +1705,19 @@ impl ProceduralPlanet {
     /// [`grid_states`] at `samples` (each a face and a LOD-0 column on
     /// it) for columns of `spacing` LOD-0 columns, in their order: one
     /// call per face among them.
-    fn grid_states_by_face(&self, samples: &[(CubeFace, [f64; 2])], spacing: i64) -> [(usize, Vec<OctaveState>); 3] {
+    fn grid_states_by_face(
+        &self,
+        samples: &[(CubeFace, [f64; 2])],
+        spacing: i64,
+        band: u8,
+    ) -> [(usize, Vec<OctaveState>); 3] {
         // Most chunks lie within one face: their samples are the points,
         // in order.
         if let Some(&(face, _)) = samples.first()
             && samples.iter().all(|&(f, _)| f == face)
         {
             let points: Vec<[f64; 2]> = samples.iter().map(|&(_, point)| point).collect();
-            return self.grid_states(face, &points, spacing);
+            return self.grid_states(face, &points, spacing, band);
         }
         let mut out: [(usize, Vec<OctaveState>); 3] =
             std::array::from_fn(|_| (0, vec![OctaveState::START; samples.len()]));
@@ -1583,7 +1727,7 @@ impl ProceduralPlanet {
         for face in faces {
             let (indices, points): (Vec<usize>, Vec<[f64; 2]>) =
                 samples.iter().enumerate().filter(|(_, (f, _))| *f == face).map(|(n, &(_, point))| (n, point)).unzip();
-            let resumed = self.grid_states(face, &points, spacing);
+            let resumed = self.grid_states(face, &points, spacing, band);
             for ((start, states), (out_start, out_states)) in resumed.into_iter().zip(&mut out) {
                 *out_start = start;
                 for (n, state) in indices.iter().zip(states) {
@@ -1797,11 +1941,15 @@ struct ColumnRelief {
     column: ChunkColumn,
     /// Voxel span at the column's LOD, in layers.
     span: f64,
-    /// Range of H over the column and a voxel beyond, in layers.
+    /// Range of H over the column and a voxel beyond, in layers, widened
+    /// by what the sums of the LODs under it leave out ([`BandLimited`]).
     low: f64,
     high: f64,
     /// The slope bound over it.
     slope: f64,
+    /// How far the sums of the LODs under it can lie from H there
+    /// ([`ProceduralPlanet::dropped_within`]), layers.
+    dropped: f64,
     /// Whether a cave may lie under it.
     caves_near: bool,
 }
@@ -1873,11 +2021,14 @@ impl ProceduralPlanet {
             high = high.min(sampled_high + margin);
         }
         let (lowest, highest) = (self.lowest() / self.layer_height, self.highest() / self.layer_height);
-        let (low, high) = (low.max(lowest), high.min(highest));
+        // The columns of every LOD up to this one's, without the octaves
+        // they leave out (`BandLimited`: the coarser, the more).
+        let dropped = self.dropped_within(column.lod, ranges);
+        let (low, high) = (low.max(lowest) - dropped, high.min(highest) + dropped);
         let caves_near = self.caves.at_lod(column.lod)
             && high + span >= crate::caves::SEA_MARGIN_LAYERS
             && self.caves.may_be_near(ball.0, ball.1);
-        Ok(ColumnRelief { column, span, low, high, slope, caves_near })
+        Ok(ColumnRelief { column, span, low, high, slope, dropped, caves_near })
     }
 
     /// [`VoxelSource::surface_bounds`] of the column of `relief` with caves
@@ -1887,7 +2038,7 @@ impl ProceduralPlanet {
     /// `sealed_top`, only what lies under that many layers of rock (the
     /// sealed caves' surface, seen from inside them).
     fn bounds_reaching(&self, relief: &ColumnRelief, cave_depth: f64, sealed_top: Option<f64>) -> SurfaceBounds {
-        let ColumnRelief { column, span, low, high, slope, caves_near } = *relief;
+        let ColumnRelief { column, span, low, high, slope, caves_near, .. } = *relief;
         // A column's voxel top lies in (H + 1/2 − span, H + 1/2] of its sample
         // column's height H. A solid voxel with air beside it lies down to
         // the top of the neighbouring voxel column, whose sample is up to
@@ -2000,7 +2151,7 @@ impl VoxelSource for ProceduralPlanet {
         // Only their highest H is needed: found without summing every
         // octave at every corner (`highest_height`).
         let sampled = self.highest_height(column.face, spacing, corners);
-        let high = relief.high.min(sampled + relief.slope * spacing as f64);
+        let high = relief.high.min(sampled + relief.slope * spacing as f64 + relief.dropped);
         // A voxel's top is within half a layer over its column's H (as in
         // `bounds_reaching`).
         let max_layer = (high + 0.5).ceil();
@@ -2058,7 +2209,9 @@ impl VoxelSource for ProceduralPlanet {
         // one's cave (or mouth), the finer surface lies as deep as the
         // deepest cave air (`caves.rs`).
         let caves = if self.caves.coarsest_lod().is_some() { self.caves.deepest() + span } else { 0.0 };
-        (span + (2.0 * self.max_slope * (span - 1.0)).min(relief) + caves) * self.layer_height
+        // And what the LOD's sums leave out (`BandLimited`).
+        let dropped = self.bands[usize::from(lod)].dropped;
+        (span + (2.0 * self.max_slope * (span - 1.0)).min(relief) + caves + dropped) * self.layer_height
     }
 }
 
@@ -2113,11 +2266,16 @@ mod tests {
     /// their slack, with no voxel or material threshold of their
     /// LOD in between (so they classify as H does: the voxel-level check is
     /// `filled_chunks_equal_voxels_read_one_by_one`), and bit for bit where
-    /// the slack is 0; most coarse columns are decided before the last
-    /// octave, and LOD-0 columns come out exact far more often.
+    /// the slack is 0; without a band limit most coarse columns are
+    /// decided before the last octave (band-limited, a coarse sum is a few
+    /// octaves long), and LOD-0 columns come out exact far more often.
     #[test]
     fn columns_hold_their_height_within_their_slack() {
-        for planet in [PlanetSettings::earth(9), PlanetSettings::small(9)].map(|s| ProceduralPlanet::new(s).unwrap()) {
+        // The presets, and band-limited (their coarse sums a few octaves
+        // long, summed to the last by every column).
+        let presets = [PlanetSettings::earth(9), PlanetSettings::small(9)];
+        let limited = presets.clone().map(|s| PlanetSettings { band_limit: 8.0, ..s });
+        for planet in presets.into_iter().chain(limited).map(|s| ProceduralPlanet::new(s).unwrap()) {
             let mut exact_share = Vec::new();
             for (n, lod) in [0u8, 2, 7, 12].into_iter().enumerate() {
                 let lod = lod.min(planet.layout.max_lod());
@@ -2130,13 +2288,13 @@ mod tests {
                 let directions: Vec<_> =
                     cells.iter().map(|&(i, j)| planet.layout.sample_direction(face, lod, i, j)).collect();
                 let samples: Vec<_> = cells.iter().map(|&(i, j)| planet.sample_column(face, lod, i, j)).collect();
-                let resumed = planet.grid_states_by_face(&samples, planet.layout.voxel_span(lod));
+                let resumed = planet.grid_states_by_face(&samples, planet.layout.voxel_span(lod), lod);
                 let columns = planet.columns_at(&directions, resumed, lod, true);
                 let mut exact = 0;
                 for ((direction, column), &(owner, point)) in directions.iter().zip(&columns).zip(&samples) {
                     // Every grid read at the column, as for a point between
                     // columns: the same sums as a chunk of this LOD reads.
-                    let [continents, ridges, hills] = planet.sums_at_columns(owner, &[point], &[*direction], 1)[0];
+                    let [continents, ridges, hills] = planet.sums_at_columns(owner, &[point], &[*direction], 1, lod)[0];
                     let truth = planet.combine(continents, ridges, hills);
                     let climate = Climate {
                         sin_latitude: direction.z,
@@ -2162,8 +2320,14 @@ mod tests {
                 }
                 exact_share.push(exact as f64 / columns.len() as f64);
             }
-            println!("share of columns to the last octave, LODs 0, 2, 7, 12: {exact_share:.2?}");
-            assert!(exact_share[2] < 0.5 && exact_share[3] < 0.5, "coarse columns should leave early: {exact_share:?}");
+            let band_limit = planet.settings.band_limit;
+            println!(
+                "share of columns to the last octave, LODs 0, 2, 7, 12 (band limit {band_limit}): {exact_share:.2?}"
+            );
+            assert!(
+                band_limit > 0.0 || (exact_share[2] < 0.5 && exact_share[3] < 0.5),
+                "coarse columns should leave early: {exact_share:?}"
+            );
         }
     }
 
@@ -2259,17 +2423,21 @@ mod tests {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
 
         /// A LOD-0 column read as the far-corner column of a coarser LOD
-        /// has the same height bit for bit (the grids finer than that LOD
+        /// has the same height bit for bit as the LOD-0 column summed with
+        /// that LOD's octaves (`BandLimited`; the grids finer than that LOD
         /// evaluated at it, as its nodes; `octave_grid.rs`), on any face,
-        /// near its edges too; and `height_at` through the inverse map at
-        /// the column's centre agrees to a millionth of a layer.
+        /// near its edges too, and lies within what those leave out of H;
+        /// and `height_at` through the inverse map at the column's centre
+        /// agrees with the LOD-0 column to a millionth of a layer.
         #[test]
         fn a_column_reads_the_same_at_every_lod(
             face in 0usize..6,
             (a, b) in (0.0f64..1.0, 0.0f64..1.0),
             lod in 1u8..7,
         ) {
-            let planet = ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap();
+            // Band-limited (the LOD's sums leave octaves out): the presets
+            // keep every octave, where the coarse column is H's bit for bit.
+            let planet = ProceduralPlanet::new(PlanetSettings { band_limit: 8.0, ..PlanetSettings::earth(5) }).unwrap();
             let face = CubeFace::ALL[face];
             let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
             let (ci, cj) = ((a * per_edge as f64) as i64, (b * per_edge as f64) as i64);
@@ -2277,8 +2445,13 @@ mod tests {
             let (i, j) = ((ci + 1) * span - 1, (cj + 1) * span - 1);
             let coarse = planet.column(face, lod, ci, cj).height;
             let fine = planet.column(face, 0, i, j).height;
-            proptest::prop_assert_eq!(coarse.to_bits(), fine.to_bits(), "LOD {} against LOD 0", lod);
             let direction = planet.layout.sample_direction(face, 0, i, j);
+            let [continents, ridges, hills] =
+                planet.sums_at_columns(face, &[[i as f64, j as f64]], &[direction], 1, lod)[0];
+            let fine_band = planet.combine(continents, ridges, hills) / planet.layer_height;
+            proptest::prop_assert_eq!(coarse.to_bits(), fine_band.to_bits(), "LOD {} against LOD 0", lod);
+            let dropped = planet.bands[usize::from(lod)].dropped;
+            proptest::prop_assert!((coarse - fine).abs() <= dropped, "{} from H {}: over {}", coarse, fine, dropped);
             let between = planet.height_at(direction) / planet.layer_height;
             proptest::prop_assert!((between - fine).abs() < 1e-6, "height_at {} against {}", between, fine);
         }

@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 use proptest::prelude::*;
 
 use crate::*;
-use nebula_math::unit_random;
+use nebula_math::{DVec3, unit_random};
 
 fn small() -> &'static ProceduralPlanet {
     static PLANET: OnceLock<ProceduralPlanet> = OnceLock::new();
@@ -26,6 +26,12 @@ fn column_top(source: &impl VoxelSource, face: CubeFace, lod: u8, i: u32, j: u32
         if solid(mid) { low = mid } else { high = mid }
     }
     high * span
+}
+
+/// `settings` with coarse LODs band-limited as [`PlanetSettings::band_limit`]
+/// describes (the presets keep every octave at every LOD).
+fn band_limited(settings: PlanetSettings) -> PlanetSettings {
+    PlanetSettings { band_limit: 8.0, ..settings }
 }
 
 /// A random column of `face` at `lod`, from `unit` (uniform in [0, 1)).
@@ -58,7 +64,9 @@ fn settings_are_checked() {
         bad(|s| s.octave_grid_error = f64::INFINITY),
         VoxelError::NonFinite { name: "octave grid error", .. }
     ));
+    assert!(matches!(bad(|s| s.band_limit = f64::NAN), VoxelError::NonFinite { name: "band limit", .. }));
     assert!(matches!(bad(|s| s.octave_grid_error = -0.5), VoxelError::OutOfRange { name: "octave grid error", .. }));
+    assert!(matches!(bad(|s| s.band_limit = -1.0), VoxelError::OutOfRange { name: "band limit", .. }));
     let message = bad(|s| s.radius = -3.0).to_string();
     assert!(message.contains("-3"), "{message}");
 }
@@ -130,9 +138,15 @@ fn earth_sized_planet_is_valid() {
 
 #[test]
 fn geometric_error_bounds_the_voxel_tops() {
+    for settings in [PlanetSettings::small(7), band_limited(PlanetSettings::small(7))] {
+        geometric_error_bounds_the_voxel_tops_on(&ProceduralPlanet::new(settings).unwrap());
+    }
+}
+
+/// [`geometric_error_bounds_the_voxel_tops`] on one planet.
+fn geometric_error_bounds_the_voxel_tops_on(planet: &ProceduralPlanet) {
     // For random coarse columns, every LOD-0 column below has its top within
     // δ(L) of the coarse top (places unrelated to the ones S was measured at).
-    let planet = small();
     let layout = planet.layout();
     let mut worst_ratio = 0.0_f64;
     let mut state = 12345u64;
@@ -457,6 +471,78 @@ fn surface_bounds_through_the_height_memo_equal_cold_ones() {
     assert!(checked >= 2 * 6 * 4 * 6, "only {checked} bounds checked");
 }
 
+/// Coarse LODs band-limited (`PlanetSettings::band_limit`): LOD 0 holds the same voxels with and without it (saved
+/// edits, picking and walking read LOD 0), and coarse chunks over high
+/// mountains differ, with fewer faces between solid and air (the bumps
+/// that octaves sampled a few times a wavelength add are gone). That
+/// their tops stay within δ of LOD 0, and within the surface bounds and
+/// tight tops, the tests of those check on band-limited planets too.
+#[test]
+fn band_limited_coarse_lods_keep_lod_0_and_lose_aliased_faces() {
+    let on = ProceduralPlanet::new(band_limited(PlanetSettings::earth(11))).unwrap();
+    let off = ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    assert_eq!(off.settings().band_limit, 0.0);
+    let layout = *on.layout();
+    // Faces between a solid voxel and air, inside the chunk and to its padding.
+    let faces = |voxels: &ChunkVoxels| {
+        let solid = |p: [u32; 3]| voxels.get(p).is_some_and(Voxel::is_solid);
+        let mut count = 0;
+        for p in (1..33u32).flat_map(|x| (1..33u32).flat_map(move |y| (1..33u32).map(move |z| [x, y, z]))) {
+            if solid(p) {
+                for axis in 0..3 {
+                    for step in [-1i32, 1] {
+                        let mut q = p;
+                        q[axis] = q[axis].wrapping_add_signed(step);
+                        count += usize::from(!solid(q));
+                    }
+                }
+            }
+        }
+        count
+    };
+    // Columns over high mountains (H over 1,500 m), from a fixed seed.
+    let mut state = 0x0B1_u64;
+    let mut mountains = Vec::new();
+    while mountains.len() < 6 {
+        let mut unit = || unit_random(&mut state) * 2.0 - 1.0;
+        let Some(direction) = DVec3::new(unit(), unit(), unit()).try_normalize() else { continue };
+        if on.height_at(direction) >= 1_500.0 {
+            mountains.push(direction);
+        }
+    }
+    let (mut lod_0_voxels, mut coarse_differ) = (0, 0);
+    let (mut faces_on, mut faces_off) = (0, 0);
+    let mut chunk_on = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
+    let mut chunk_off = chunk_on.clone();
+    for (n, direction) in mountains.iter().enumerate() {
+        for lod in [0u8, 2, 4, 6] {
+            let at = layout.voxel_at(*direction * layout.sphere().radius()).unwrap();
+            let span = layout.voxel_span(lod) as u32;
+            let column = ChunkColumn { face: at.face, lod, x: at.i / span / 32, y: at.j / span / 32 };
+            let (a, b) = (on.surface_chunk_layers(column).unwrap(), off.surface_chunk_layers(column).unwrap());
+            for layer in *a.start().min(b.start())..=*a.end().max(b.end()) {
+                on.fill_chunk(column.chunk(layer), &mut chunk_on).unwrap();
+                off.fill_chunk(column.chunk(layer), &mut chunk_off).unwrap();
+                if lod == 0 {
+                    assert!(chunk_on.as_slice() == chunk_off.as_slice(), "mountain {n}: LOD 0 layer {layer} differs");
+                    lod_0_voxels += chunk_on.as_slice().len();
+                } else {
+                    coarse_differ +=
+                        chunk_on.as_slice().iter().zip(chunk_off.as_slice()).filter(|(x, y)| x != y).count();
+                    faces_on += faces(&chunk_on);
+                    faces_off += faces(&chunk_off);
+                }
+            }
+        }
+    }
+    println!(
+        "LOD 0: {lod_0_voxels} voxels the same; LODs 2, 4, 6: {coarse_differ} voxels differ, faces {faces_off} → \
+         {faces_on} band-limited"
+    );
+    assert!(lod_0_voxels > 0 && coarse_differ > 0, "the band limit changed nothing where it should");
+    assert!(faces_on < faces_off, "{faces_on} faces band-limited against {faces_off}");
+}
+
 /// A chunk's voxels, whose column heights are computed all at once
 /// (octave by octave, sharing noise cells), equal the voxels read one at a
 /// time: Earth and the small planet, surface chunks from LOD 0 to near the
@@ -466,6 +552,7 @@ fn filled_chunks_equal_voxels_read_one_by_one() {
     let mut checked = 0;
     for (planet, lods) in [
         (ProceduralPlanet::new(PlanetSettings::earth(5)).unwrap(), [0u8, 3, 9, 16]),
+        (ProceduralPlanet::new(band_limited(PlanetSettings::earth(5))).unwrap(), [0u8, 2, 5, 12]),
         (ProceduralPlanet::new(PlanetSettings::small(5)).unwrap(), [0u8, 1, 3, 5]),
     ] {
         let layout = *planet.layout();
@@ -483,7 +570,7 @@ fn filled_chunks_equal_voxels_read_one_by_one() {
             }
         }
     }
-    assert_eq!(checked, 8 * 32 * 32 * 32);
+    assert_eq!(checked, 12 * 32 * 32 * 32);
 }
 
 /// Fills every surface chunk of `column` from `warm` (its height cache as
@@ -584,7 +671,13 @@ fn surface_materials(planet: &ProceduralPlanet, column: ChunkColumn) -> (std::co
 /// the column (the noise's own ranges, `ProceduralPlanet::sum_ranges`).
 #[test]
 fn earth_surface_bounds_hold_the_tops_and_stay_narrow() {
-    let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    for settings in [PlanetSettings::earth(11), band_limited(PlanetSettings::earth(11))] {
+        earth_surface_bounds_hold_the_tops_and_stay_narrow_on(&ProceduralPlanet::new(settings).unwrap());
+    }
+}
+
+/// [`earth_surface_bounds_hold_the_tops_and_stay_narrow`] on one planet.
+fn earth_surface_bounds_hold_the_tops_and_stay_narrow_on(planet: &ProceduralPlanet) {
     let layout = planet.layout();
     let mut state = 23_u64;
     let mut next = || unit_random(&mut state);
@@ -621,7 +714,13 @@ fn earth_surface_bounds_hold_the_tops_and_stay_narrow() {
 /// misses the 17 × 17 grid's peak.
 #[test]
 fn earth_surface_tops_hold_every_lod_and_are_tighter_than_the_bounds() {
-    let planet = &ProceduralPlanet::new(PlanetSettings::earth(11)).unwrap();
+    for settings in [PlanetSettings::earth(11), band_limited(PlanetSettings::earth(11))] {
+        earth_surface_tops_hold_every_lod_and_are_tighter_than_the_bounds_on(&ProceduralPlanet::new(settings).unwrap());
+    }
+}
+
+/// [`earth_surface_tops_hold_every_lod_and_are_tighter_than_the_bounds`] on one planet.
+fn earth_surface_tops_hold_every_lod_and_are_tighter_than_the_bounds_on(planet: &ProceduralPlanet) {
     let layout = planet.layout();
     let sphere = layout.sphere();
     let mut state = 29_u64;
@@ -1071,16 +1170,18 @@ fn a_ray_straight_up_along_an_axis_misses() {
 
 /// FNV-1a over the materials of chunks around the surface of a few
 /// columns (LOD 0 and 4, both presets, edges and corners among them), with
-/// or without the presets' caves and octave grids.
-fn terrain_fingerprint(caves: bool, grids: bool, coarse_grids: bool) -> u64 {
+/// or without the presets' caves, octave grids and band limit.
+fn terrain_fingerprint(caves: bool, grids: bool, coarse_grids: bool, band_limited: bool) -> u64 {
     let mut hash = 0xcbf2_9ce4_8422_2325_u64;
     let mut chunk = ChunkVoxels::new(ChunkKey { face: CubeFace::PosX, lod: 0, x: 0, y: 0, layer: 0 });
     for settings in [PlanetSettings::small(7), PlanetSettings::earth(11)] {
         let cave_size = if caves { settings.cave_size } else { 0.0 };
         let octave_grid = if grids { settings.octave_grid } else { 0.0 };
         let octave_grid_error = if coarse_grids { settings.octave_grid_error } else { 0.0 };
+        let band_limit = if band_limited { self::band_limited(settings.clone()).band_limit } else { 0.0 };
         let planet =
-            ProceduralPlanet::new(PlanetSettings { cave_size, octave_grid, octave_grid_error, ..settings }).unwrap();
+            ProceduralPlanet::new(PlanetSettings { cave_size, octave_grid, octave_grid_error, band_limit, ..settings })
+                .unwrap();
         let layout = *planet.layout();
         for (n, face) in CubeFace::ALL.into_iter().enumerate() {
             for lod in [0u8, 4] {
@@ -1112,16 +1213,26 @@ fn the_terrain_is_the_one_its_version_names() {
     // new fingerprints here with its version: without caves or grids (the
     // planets saved before caves existed, `cave_size` 0), with the presets'
     // caves (saved before octave grids, `octave_grid` 0), with both (saved
-    // before coarse grids, `octave_grid_error` 0), and with all three.
+    // before coarse grids, `octave_grid_error` 0), with all three (saved
+    // before the band limit, `band_limit` 0), and with all four.
     // A setting added since (`PlanetSettings::ADDED_SETTINGS`) leaves the
     // earlier fingerprints as they were: its old value is the old terrain.
-    const FINGERPRINTS: &[(u32, [u64; 4])] =
-        &[(1, [0xb127_8bc9_e17b_fc98, 0x30e7_fa30_f1d4_9dff, 0x4232_3f04_11fe_6ee7, 0x10cf_5945_b87d_7cf9])];
+    const FINGERPRINTS: &[(u32, [u64; 5])] = &[(
+        1,
+        [
+            0xb127_8bc9_e17b_fc98,
+            0x30e7_fa30_f1d4_9dff,
+            0x4232_3f04_11fe_6ee7,
+            0x10cf_5945_b87d_7cf9,
+            0x0ef6_e784_ad6e_1c63,
+        ],
+    )];
     let fingerprints = [
-        terrain_fingerprint(false, false, false),
-        terrain_fingerprint(true, false, false),
-        terrain_fingerprint(true, true, false),
-        terrain_fingerprint(true, true, true),
+        terrain_fingerprint(false, false, false, false),
+        terrain_fingerprint(true, false, false, false),
+        terrain_fingerprint(true, true, false, false),
+        terrain_fingerprint(true, true, true, false),
+        terrain_fingerprint(true, true, true, true),
     ];
     let recorded = FINGERPRINTS.iter().find(|(version, ..)| *version == ProceduralPlanet::TERRAIN_VERSION);
     assert_eq!(
@@ -1132,8 +1243,9 @@ fn the_terrain_is_the_one_its_version_names() {
     assert_ne!(fingerprints[0], fingerprints[1], "the caves are not in the fingerprint");
     assert_ne!(fingerprints[1], fingerprints[2], "the grids are not in the fingerprint");
     assert_ne!(fingerprints[2], fingerprints[3], "the coarse grids are not in the fingerprint");
+    assert_ne!(fingerprints[3], fingerprints[4], "the band limit is not in the fingerprint");
     // Versions that were released stay distinct.
-    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && (0..4).all(|n| w[0].1[n] != w[1].1[n])));
+    assert!(FINGERPRINTS.windows(2).all(|w| w[0].0 < w[1].0 && (0..5).all(|n| w[0].1[n] != w[1].1[n])));
 }
 
 #[test]
@@ -1141,7 +1253,7 @@ fn canonical_settings_name_every_field_once_sorted() {
     let settings = PlanetSettings::earth(11);
     let pairs = settings.canonical();
     assert!(pairs.windows(2).all(|w| w[0].0 < w[1].0), "{pairs:?}");
-    assert_eq!(pairs.len(), 11);
+    assert_eq!(pairs.len(), 12);
     // Values read back to the same settings, and a change shows.
     let radius: f64 = pairs.iter().find(|(n, _)| *n == "radius").unwrap().1.parse().unwrap();
     assert_eq!(radius, settings.radius);

@@ -360,13 +360,21 @@ fn a_world_knows_its_terrain() {
         txn.commit().unwrap();
     };
     // What format-1 builds wrote: the Debug text of the settings before
-    // `cave_size`, `octave_grid` and `octave_grid_error`, the last fields,
-    // were added.
-    let heightfield = PlanetSettings { cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0, ..settings.clone() };
-    let format_1_text = |settings: &PlanetSettings| {
-        format!("{settings:?}").replace(", cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0 }", " }")
+    // `cave_size`, `octave_grid`, `octave_grid_error` and `band_limit`, the
+    // last fields, were added.
+    let heightfield = PlanetSettings {
+        cave_size: 0.0,
+        octave_grid: 0.0,
+        octave_grid_error: 0.0,
+        band_limit: 0.0,
+        ..settings.clone()
     };
-    assert!(!format_1_text(&heightfield).contains("cave") && !format_1_text(&heightfield).contains("octave"));
+    let format_1_text = |settings: &PlanetSettings| {
+        format!("{settings:?}")
+            .replace(", cave_size: 0.0, octave_grid: 0.0, octave_grid_error: 0.0, band_limit: 0.0 }", " }")
+    };
+    let text = format_1_text(&heightfield);
+    assert!(!text.contains("cave") && !text.contains("octave") && !text.contains("band"));
     write_v1(&path, &format_1_text(&heightfield));
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings.clone(), Some(&path)), Err(WorldError::OtherPlanet { .. })));
