@@ -862,24 +862,21 @@ impl ProceduralPlanet {
         spacing: i64,
         band: u8,
     ) -> Vec<[f64; 3]> {
-        let BandLimited { sums, levels, .. } = &self.bands[usize::from(band)];
+        let levels = &self.bands[usize::from(band)].levels;
         // Every octave direct (a node of every grid, the LOD tree's bound
         // samples among them): the sums as `Fractal::get` gives them, bit
         // for bit what the batches would.
         if levels.iter().all(|levels| levels.exact_at(spacing)) {
             return directions
                 .iter()
-                .map(|d| {
-                    let scales = [self.noise_scale, self.ridge_scale, self.detail_scale];
-                    [0, 1, 2].map(|n| sums[n].get((*d * scales[n]).to_array()))
-                })
+                .map(|d| self.gridded(band).map(|sum| sum.fractal.get((*d * sum.scale).to_array())))
                 .collect();
         }
         let resumed = self.grid_states(face, points, spacing, band);
         let all: Vec<usize> = (0..points.len()).collect();
         let mut out = vec![[0.0; 3]; points.len()];
         for (n, (sum, (start, states))) in self.gridded(band).iter().zip(&resumed).enumerate() {
-            let fractal = &sums[n];
+            let fractal = sum.fractal;
             let noise_points: Vec<[f64; 3]> = directions.iter().map(|d| (*d * sum.scale).to_array()).collect();
             let mut batch = fractal.resume(&noise_points, states, *start);
             while !batch.done(fractal) {
