@@ -2416,6 +2416,40 @@ mod tests {
         assert!(p99 >= 0.1 || largest >= 0.5, "coarse grids past the budget should show: {p99}, {largest}");
     }
 
+    /// A band-limited column (`BandLimited`) lies within what its chunk
+    /// column's relief allows for the octaves left out (`dropped_within`,
+    /// which widens the surface bounds and tight tops) of H at its
+    /// far-corner LOD-0 column, at random places and over high mountains,
+    /// LODs 1–9; and that allowance is not slack beyond use: somewhere the
+    /// column comes within a tenth of it.
+    #[test]
+    fn band_limited_columns_lie_within_their_reliefs_allowance() {
+        let planet = ProceduralPlanet::new(PlanetSettings { band_limit: 8.0, ..PlanetSettings::earth(21) }).unwrap();
+        let layout = planet.layout;
+        let mut state = 0x0BA4D_u64;
+        let (mut checked, mut closest) = (0, 0.0_f64);
+        for n in 0..400 {
+            let mut unit = || nebula_math::unit_random(&mut state);
+            let lod = 1 + (n % 9) as u8;
+            let face = CubeFace::ALL[n % 6];
+            let per_edge = i64::from(layout.voxels_per_edge(lod));
+            let (ci, cj) = ((unit() * per_edge as f64) as i64, (unit() * per_edge as f64) as i64);
+            let span = layout.voxel_span(lod);
+            let column = ChunkColumn { face, lod, x: (ci / 32) as u32, y: (cj / 32) as u32 };
+            let allowance = planet.column_relief(column).unwrap().dropped;
+            let coarse = planet.column(face, lod, ci, cj).height;
+            let fine = planet.column(face, 0, (ci + 1) * span - 1, (cj + 1) * span - 1).height;
+            let off = (coarse - fine).abs();
+            assert!(off <= allowance, "{column:?} ({ci}, {cj}): {off} layers from H, allowed {allowance}");
+            if allowance > 0.0 {
+                closest = closest.max(off / allowance);
+                checked += 1;
+            }
+        }
+        println!("{checked} band-limited columns; the closest came to {closest:.3} of its allowance");
+        assert!(checked > 300 && closest > 0.1, "{checked} checked, closest {closest}");
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
 
