@@ -165,10 +165,10 @@ pub struct PlanetSettings {
     /// column is no longer its far-corner fine column, so fully morphed
     /// children are not their parent: the small planet's surface pop at a
     /// LOD switch measured 2.76 px, over the 2.6 px its test allows),
-    /// which is why it is not on by default. What is left out moves a column by at most
-    /// [`BandLimited`]'s `dropped`, which [`VoxelSource::geometric_error`]
-    /// and the surface bounds allow for. LOD 0 keeps every octave either
-    /// way.
+    /// which is why it is not on by default. What is left out moves a
+    /// column by at most [`BandLimited`]'s `dropped`, which
+    /// [`VoxelSource::geometric_error`] and the surface bounds allow for.
+    /// LOD 0 keeps every octave either way.
     pub band_limit: f64,
 }
 
@@ -737,11 +737,7 @@ impl ProceduralPlanet {
             let fractal = sums[n].0;
             (kept[n]..fractal.octaves()).map(|k| fractal.octave_amplitude(k)).sum::<f64>()
         });
-        let dropped = if tails.iter().all(|&t| t == 0.0) {
-            0.0
-        } else {
-            height_step(settings, SumRanges::EVERYWHERE, tails) / self.layer_height
-        };
+        let dropped = self.tails_reach(tails, SumRanges::EVERYWHERE);
         BandLimited {
             sums: [0, 1, 2].map(|n| sums[n].0.with_octaves(kept[n])),
             levels: [0, 1, 2].map(|n| self.levels[n].with_octaves(kept[n])),
@@ -758,7 +754,12 @@ impl ProceduralPlanet {
     /// moves nothing and the hills' little; over mountains it is most of
     /// [`BandLimited::dropped`], the bound anywhere.
     fn dropped_within(&self, lod: u8, ranges: SumRanges) -> f64 {
-        let tails = self.bands[usize::from(lod)].tails;
+        self.tails_reach(self.bands[usize::from(lod)].tails, ranges)
+    }
+
+    /// How far, layers, sums off by at most `tails` (noise units) can move
+    /// H where the exact sums lie in `ranges` (see [`Self::dropped_within`]).
+    fn tails_reach(&self, tails: [f64; 3], ranges: SumRanges) -> f64 {
         if tails.iter().all(|&t| t == 0.0) {
             return 0.0;
         }
@@ -2466,9 +2467,11 @@ mod tests {
             (a, b) in (0.0f64..1.0, 0.0f64..1.0),
             lod in 1u8..7,
         ) {
-            // Band-limited (the LOD's sums leave octaves out): the presets
-            // keep every octave, where the coarse column is H's bit for bit.
-            let planet = ProceduralPlanet::new(PlanetSettings { band_limit: 8.0, ..PlanetSettings::earth(5) }).unwrap();
+            // The preset (every octave at every LOD: the coarse column is
+            // the LOD-0 column's, bit for bit) and band-limited (the LOD's
+            // sums leave octaves out).
+            for band_limit in [0.0, 8.0] {
+            let planet = ProceduralPlanet::new(PlanetSettings { band_limit, ..PlanetSettings::earth(5) }).unwrap();
             let face = CubeFace::ALL[face];
             let per_edge = i64::from(planet.layout.voxels_per_edge(lod));
             let (ci, cj) = ((a * per_edge as f64) as i64, (b * per_edge as f64) as i64);
@@ -2481,10 +2484,14 @@ mod tests {
                 planet.sums_at_columns(face, &[[i as f64, j as f64]], &[direction], 1, lod)[0];
             let fine_band = planet.combine(continents, ridges, hills) / planet.layer_height;
             proptest::prop_assert_eq!(coarse.to_bits(), fine_band.to_bits(), "LOD {} against LOD 0", lod);
+            if band_limit == 0.0 {
+                proptest::prop_assert_eq!(coarse.to_bits(), fine.to_bits(), "LOD {} against H", lod);
+            }
             let dropped = planet.bands[usize::from(lod)].dropped;
             proptest::prop_assert!((coarse - fine).abs() <= dropped, "{} from H {}: over {}", coarse, fine, dropped);
             let between = planet.height_at(direction) / planet.layer_height;
             proptest::prop_assert!((between - fine).abs() < 1e-6, "height_at {} against {}", between, fine);
+            }
         }
     }
 }
