@@ -101,9 +101,9 @@ struct Args {
     #[arg(long = "octave-grid-error", value_name = "M")]
     octave_grid_error: Option<f64>,
     /// Voxels per wavelength under which coarse LODs (1 and up) leave a
-    /// noise octave out, 0 for every octave at every LOD (fewer triangles
-    /// at 8, but LOD switches pop a little: `PlanetSettings::band_limit`)
-    /// [default: 0].
+    /// noise octave out, 0 for every octave at every LOD (the terrain of
+    /// worlds saved before it; more triangles, LOD switches nested
+    /// exactly: `PlanetSettings::band_limit`) [default: 6].
     #[arg(long = "band-limit", value_name = "VOXELS")]
     band_limit: Option<f64>,
     /// The planet seed used: --seed or the preset's.

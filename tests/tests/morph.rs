@@ -379,7 +379,11 @@ fn the_pop_at_a_lod_switch_is_measured_against_the_parents_own_mesh() {
     // (two walls in one lattice plane, facing each other), and the seam
     // walls on the column's boundary come from other padding. The goal
     // stays 0.5 px; this bounds what is there so it cannot grow unseen.
-    // The ground's geomorph, without caves: a cave appears at the switch
+    // Since the presets leave out the octaves a coarse LOD can only alias
+    // (`PlanetSettings::band_limit` 6, 2026-12-04), a fully morphed child
+    // is its parent less those octaves: the small planet's pop measured
+    // 2.30-2.35 px (2.23-2.26 with every octave, 2.76-2.87 at band limit
+    // 8), Earth's 0.97-0.98 px as before. The ground's geomorph, without caves: a cave appears at the switch
     // to the LOD that keeps it (`nebula_voxel`'s caves LOD rule), a pop of
     // a cave's size that no morph hides and this does not measure.
     let heightfield = |settings: PlanetSettings| PlanetSettings { cave_size: 0.0, ..settings };
