@@ -9,7 +9,7 @@ use nebula_lod::LodSettings;
 use nebula_math::DVec3;
 use nebula_voxel::{PlanetSettings, ProceduralPlanet};
 
-use crate::app::{FrameFigures, PlanetApp, View, camera};
+use crate::app::{FrameFigures, PlanetApp, PlanetVoxels, View, camera};
 use nebula_render::DebugView;
 use nebula_render::context::GpuContext;
 use nebula_render::readback::Offscreen;
@@ -92,6 +92,24 @@ pub fn reference_node_budget(budget: usize, shot_px: f64, reference_px: f64) -> 
     }
     let scale = (ratio * ratio).min(16.0);
     (budget as f64 * scale).round() as usize
+}
+
+/// The voxels a picture-error reference is drawn from: `voxels`' planet
+/// with every noise octave at every LOD (`PlanetSettings::band_limit` 0)
+/// and the same edits. The reference stands for the terrain itself, so a
+/// shot whose coarse LODs leave octaves out is measured against the ground
+/// with them, not against a finer view that leaves out octaves too.
+///
+/// # Errors
+/// The planet's settings errors; an edit that is not on the planet (it was
+/// on the same planet, so none).
+pub fn every_octave_reference(voxels: &PlanetVoxels) -> anyhow::Result<PlanetVoxels> {
+    let settings = PlanetSettings { band_limit: 0.0, ..voxels.base().settings().clone() };
+    let mut reference = PlanetVoxels::new(ProceduralPlanet::new(settings)?);
+    for (at, voxel) in voxels.edits() {
+        reference.set_voxel(at, voxel)?;
+    }
+    Ok(reference)
 }
 
 /// A rendered picture and what it showed.
@@ -504,5 +522,45 @@ mod tests {
         for (shot, reference) in [(1.0, 1.0), (1.0, 2.0), (f64::NAN, 0.5), (1.0, 0.0), (1.0, f64::NAN)] {
             assert_eq!(reference_node_budget(400_000, shot, reference), 400_000, "{shot} / {reference}");
         }
+    }
+
+    /// The picture-error reference is the same planet and edits with every
+    /// octave: its coarse chunks differ from the band-limited planet's,
+    /// its LOD-0 chunks and edits do not.
+    #[test]
+    fn the_reference_has_every_octave_and_the_same_edits() {
+        let planet = ProceduralPlanet::new(PlanetSettings::small(3)).unwrap();
+        assert!(planet.settings().band_limit > 0.0, "the preset is band-limited");
+        let ground = planet.surface_point(DVec3::new(0.3, 0.5, 0.8).normalize());
+        let mut voxels = PlanetVoxels::new(planet);
+        let dug = voxels.fill_sphere(ground, 4.0, nebula_voxel::Voxel::AIR).unwrap();
+        let reference = every_octave_reference(&voxels).unwrap();
+        let settings = reference.base().settings();
+        assert_eq!(settings.band_limit, 0.0);
+        assert_eq!(*settings, PlanetSettings { band_limit: 0.0, ..voxels.base().settings().clone() });
+        assert!(voxels.edit_count() > 0);
+        let sorted = |source: &PlanetVoxels| {
+            let mut edits: Vec<_> = source.edits().map(|(at, voxel)| format!("{at:?} {voxel:?}")).collect();
+            edits.sort_unstable();
+            edits
+        };
+        assert_eq!(sorted(&reference), sorted(&voxels));
+        let fill = |source: &PlanetVoxels, key: nebula_voxel::ChunkKey| {
+            let mut chunk = nebula_voxel::ChunkVoxels::new(key);
+            nebula_voxel::VoxelSource::fill_chunk(source, key, &mut chunk).unwrap();
+            chunk
+        };
+        let dug: Vec<_> = dug.into_iter().filter(|key| key.lod == 0).collect();
+        assert!(!dug.is_empty());
+        for key in &dug {
+            assert!(fill(&reference, *key) == fill(&voxels, *key), "LOD 0 {key:?} differs");
+        }
+        // Over the same ground a few LODs up the octaves left out show.
+        let differ = dug.iter().filter(|key| {
+            let column = nebula_voxel::ChunkColumn { lod: 4, x: key.x >> 4, y: key.y >> 4, ..key.column() };
+            let layers = nebula_voxel::VoxelSource::surface_chunk_layers(&voxels, column).unwrap();
+            layers.into_iter().any(|layer| fill(&reference, column.chunk(layer)) != fill(&voxels, column.chunk(layer)))
+        });
+        assert!(differ.count() > 0, "the reference's coarse chunks are the band-limited ones");
     }
 }

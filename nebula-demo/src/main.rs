@@ -18,7 +18,9 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nebula_demo::app::{DrawOptions, MorphRule, PlanetApp, PlanetVoxels, View, camera};
 use nebula_demo::commands;
-use nebula_demo::headless::{Shot, reference_node_budget, render_app, report_json, shot_view, write_png};
+use nebula_demo::headless::{
+    Shot, every_octave_reference, reference_node_budget, render_app, report_json, shot_view, write_png,
+};
 use nebula_demo::hud::Hud;
 use nebula_lod::LodSettings;
 use nebula_render::context::GpuContext;
@@ -121,8 +123,9 @@ struct Args {
     /// Also render the shot at this finer screen-space error (e.g. 0.25),
     /// save it beside the screenshot as NAME-reference.png, and report the
     /// share of pixels whose surface is off by more than a pixel's worth
-    /// against it (`picture_error`; NAME-error.png shows them red). Both
-    /// are drawn with one sample per pixel
+    /// against it (`picture_error`; NAME-error.png shows them red). The
+    /// reference has every noise octave at every LOD (band limit 0), the
+    /// terrain itself. Both are drawn with one sample per pixel
     #[arg(long, value_name = "PX")]
     reference_sse: Option<f64>,
     /// Debug view: shaded, lod, skirts, morph, wireframe or chunks.
@@ -603,6 +606,7 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         let lod = reference_shot.lod_settings();
         let lod = LodSettings { max_nodes: reference_node_budget(lod.max_nodes, shot.sse_px, sse_px), ..lod };
         let gpu = GpuContext::headless()?;
+        let voxels = Arc::new(every_octave_reference(&voxels)?);
         let mut app = PlanetApp::with_voxels(voxels, lod, gpu, shot_view(&reference_shot)?)?;
         configure(&mut app, args);
         app.renderer_mut().set_multisampling(false);
