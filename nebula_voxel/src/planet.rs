@@ -1274,19 +1274,26 @@ impl ProceduralPlanet {
     /// The highest H in layers at lattice points `corners` (`(i, j,
     /// shared)`, `shared`: whether the memo of [`Self::corner_heights`] may
     /// have it; each a multiple of `spacing`, a power of two: their columns
-    /// are nodes of the grids of that spacing and finer), bit for bit the
-    /// highest of their heights:
+    /// are nodes of the grids of that spacing and finer), the highest of
+    /// their heights or over it by at most `tolerance` layers (0: bit for
+    /// bit):
     /// the octaves of coarser grids come interpolated at all the corners
     /// at once ([`grid_states`]), then the three sums go octave by octave
     /// over the corners still open, and a corner whose H can no longer
     /// reach the highest lower bound of another's leaves (its H is at most
-    /// that other's). The memo's heights are used where it has them; a
+    /// that other's), until those left are within `tolerance` of it. The memo's heights are used where it has them; a
     /// tight top samples 81 corners, and summing every octave of each was
     /// most of the LOD thread's noise. (Corner by corner, each making the
     /// coarser grids' nodes of its own, the tops of LOD-0 and LOD-1
     /// columns took 895 and 524 µs each, over 70 % of the tops' time
     /// through a 12° lens.)
-    fn highest_height(&self, face: CubeFace, spacing: i64, corners: impl Iterator<Item = (i64, i64, bool)>) -> f64 {
+    fn highest_height(
+        &self,
+        face: CubeFace,
+        spacing: i64,
+        corners: impl Iterator<Item = (i64, i64, bool)>,
+        tolerance: f64,
+    ) -> f64 {
         let sphere = self.layout.sphere();
         // The corners to sum: those the memo does not have.
         let mut highest_known = f64::NEG_INFINITY;
@@ -1331,16 +1338,23 @@ impl ProceduralPlanet {
             // another's lower bound is lower than it (a micrometre spare
             // for the sums' rounding).
             open.retain(|&k| highs[k] >= floor - ROUNDING);
+            // Done once every corner left is within the tolerance of the
+            // highest lower bound: the highest upper bound is then at most
+            // that over the highest H (the octaves left would only bring
+            // it down to it).
+            if open.iter().all(|&k| highs[k] - floor <= tolerance * self.layer_height) {
+                break;
+            }
         }
         let highest = open.iter().map(|&k| highs[k] / self.layer_height).fold(highest_known, f64::max);
-        debug_assert_eq!(
-            highest.to_bits(),
-            summed
+        #[cfg(debug_assertions)]
+        {
+            let exact = summed
                 .iter()
                 .map(|&(i, j)| self.column_height_layers(face, i - 1, j - 1))
-                .fold(highest_known, f64::max)
-                .to_bits()
-        );
+                .fold(highest_known, f64::max);
+            debug_assert!(highest >= exact && highest <= exact + tolerance + 1e-9, "{highest} for {exact}");
+        }
         highest
     }
 
@@ -2150,9 +2164,13 @@ impl VoxelSource for ProceduralPlanet {
             let shared = a % (TOP_GRID / 2) == 0 && b % (TOP_GRID / 2) == 0;
             (i64::from(column.x) * cells + a * spacing, i64::from(column.y) * cells + b * spacing, shared)
         });
-        // Only their highest H is needed: found without summing every
-        // octave at every corner (`highest_height`).
-        let sampled = self.highest_height(column.face, spacing, corners);
+        // Only their highest H is needed, and only to within a quarter of
+        // the column's own voxel (a top is a bound, rounded up to a layer
+        // and widened by the slope between samples, several voxels):
+        // found without summing every octave at every corner, nor the
+        // last octaves at the highest (`highest_height`).
+        let tolerance = 0.25 * self.layout.voxel_span(column.lod) as f64;
+        let sampled = self.highest_height(column.face, spacing, corners, tolerance);
         let high = relief.high.min(sampled + relief.slope * spacing as f64 + relief.dropped);
         // A voxel's top is within half a layer over its column's H (as in
         // `bounds_reaching`).
