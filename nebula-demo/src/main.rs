@@ -103,9 +103,9 @@ struct Args {
     #[arg(long = "octave-grid-error", value_name = "M")]
     octave_grid_error: Option<f64>,
     /// Voxels per wavelength under which coarse LODs (1 and up) leave a
-    /// noise octave out, 0 for every octave at every LOD (the terrain of
-    /// worlds saved before it; more triangles, LOD switches nested
-    /// exactly: `PlanetSettings::band_limit`) [default: 6].
+    /// noise octave out, 0 for every octave at every LOD (more triangles,
+    /// LOD switches nested exactly: `PlanetSettings::band_limit`). A saved
+    /// world (--world) keeps its own unless this is given [default: 6].
     #[arg(long = "band-limit", value_name = "VOXELS")]
     band_limit: Option<f64>,
     /// The planet seed used: --seed or the preset's.
@@ -412,6 +412,19 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(band_limit) = args.band_limit {
         settings.band_limit = band_limit;
+    }
+    // A saved world keeps the band limit, caves and grids it was saved
+    // with unless the command line gives them.
+    if let Some(path) = &args.world {
+        let given = [
+            ("band_limit", args.band_limit.is_some()),
+            ("cave_size", args.cave_size.is_some()),
+            ("octave_grid", args.octave_grid.is_some()),
+            ("octave_grid_error", args.octave_grid_error.is_some()),
+        ];
+        let given: Vec<&str> = given.iter().filter(|(_, given)| *given).map(|(name, _)| *name).collect();
+        settings = World::saved_settings_over(settings, path, &given)
+            .with_context(|| format!("reading the settings of {}", path.display()))?;
     }
     let mut world = World::open(settings, args.world.as_deref()).with_context(|| {
         args.world.as_ref().map_or("bad planet parameters".into(), |p| format!("opening {}", p.display()))

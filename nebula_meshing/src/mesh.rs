@@ -27,7 +27,9 @@ pub struct MeshVertex {
     /// on the parent LOD's surface. For a lattice vertex that is the vertex
     /// with every local coordinate rounded down to even, which by the voxel
     /// LOD rule (`nebula_voxel`: a coarse voxel is its far-corner fine
-    /// voxel) makes a fully morphed chunk coincide with its parent. A
+    /// voxel) makes a fully morphed chunk coincide with its parent (but
+    /// for the octaves a band-limited parent leaves out,
+    /// `PlanetSettings::band_limit`). A
     /// constrained vertex targets the same chord between its segment's two
     /// (morphed) ends. Same-LOD neighbours share targets, so their seams
     /// stay closed while morphing; across a LOD boundary the skirts, sized

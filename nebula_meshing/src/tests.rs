@@ -1516,6 +1516,10 @@ fn a_fully_morphed_chunk_is_its_parent() {
         );
         assert!(unmorphed_differ > lines_checked / 10, "the check cannot tell: {unmorphed_differ}/{lines_checked}");
         assert!(morphed_differ * 4 < unmorphed_differ, "morphing does not bring the children to the parent");
+        // With every octave none differs; band-limited, a top moved across
+        // a layer boundary by the octaves the parent leaves out (2.2 %
+        // measured): a twentieth of the lines at most.
+        assert!(morphed_differ * 20 < lines_checked, "{morphed_differ} of {lines_checked} lines differ");
     }
 }
 

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! and a fully geomorphed finer chunk still matches its parent after any
-//! edit. A single dug voxel shows at LOD `L` only if it is that corner; a
+//! edit (as it does unedited: exactly with every octave at every LOD). A single dug voxel shows at LOD `L` only if it is that corner; a
 //! crater shows at every LOD whose voxels are smaller than about the crater.
 
 use std::collections::{BTreeSet, HashSet};

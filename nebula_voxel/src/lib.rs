@@ -10,10 +10,14 @@
 //! Choices:
 //! - **LODs by the far-corner rule**: a coarse voxel *is* the LOD-0 voxel in
 //!   its far corner (see [`ProceduralPlanet`]), so a finer chunk collapsed
-//!   by the geomorph (coordinates rounded down to even) is exactly its
-//!   parent. Any LOD is generated directly at the same cost per chunk; the
-//!   error bound δ(L) = (s + 2·S·(s − 1)) layers (s = 2^L, S = steepest
-//!   slope, measured by sampling) is derived and tested in
+//!   by the geomorph (coordinates rounded down to even) is its parent:
+//!   exactly with every octave at every LOD, and but for the octaves a
+//!   band-limited LOD leaves out in the presets
+//!   ([`PlanetSettings::band_limit`]). Any LOD is generated directly at
+//!   the same cost per chunk; the error bound
+//!   δ(L) = (s + min(2·S·(s − 1) + dropped(L), relief)) layers (s = 2^L,
+//!   S = steepest slope, measured by sampling; dropped(L) what the
+//!   octaves left out can move H) is derived and tested in
 //!   [`ProceduralPlanet`]'s docs.
 //! - **Caves** under the ground of the procedural planet: two networks of
 //!   winding tunnels (the shallow one opening at the surface in cave

@@ -53,6 +53,12 @@
 //! thing a collapse cannot reproduce is a one-voxel-thin sheet at an even
 //! index, which shrinks to a zero-thickness wall instead of vanishing.
 //!
+//! Exactly so with every noise octave at every LOD (`band_limit` 0). The
+//! presets band-limit coarse LODs ([`PlanetSettings::band_limit`]): there
+//! a coarse column is its far-corner fine column less the octaves its LOD
+//! leaves out, so a fully morphed chunk is its parent but where those move
+//! a top across a layer boundary (2.2 % of the tops measured), within δ.
+//!
 //! No coarse voxel is built from the `s³` fine voxels below it (a LOD-18
 //! chunk would need 10¹⁸ of them): each is one noise column and one
 //! comparison, at the same cost per chunk at every LOD.
@@ -226,6 +232,19 @@ impl PlanetSettings {
     /// it.
     pub const ADDED_SETTINGS: &'static [(&'static str, &'static str)] =
         &[("band_limit", "0.0"), ("cave_size", "0.0"), ("octave_grid", "0.0"), ("octave_grid_error", "0.0")];
+
+    /// The field of the setting named `name` in [`Self::ADDED_SETTINGS`]
+    /// (each a number of metres or voxels), `None` for any other name: so
+    /// that a saved world's value of one can be taken over.
+    pub fn added_setting_mut(&mut self, name: &str) -> Option<&mut f64> {
+        match name {
+            "band_limit" => Some(&mut self.band_limit),
+            "cave_size" => Some(&mut self.cave_size),
+            "octave_grid" => Some(&mut self.octave_grid),
+            "octave_grid_error" => Some(&mut self.octave_grid_error),
+            _ => None,
+        }
+    }
 
     /// The settings as canonical `(name, value)` pairs, sorted by name, for
     /// a saved world's identity: independent of field order and of `Debug`

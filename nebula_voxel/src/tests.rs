@@ -1266,6 +1266,26 @@ fn canonical_settings_name_every_field_once_sorted() {
     assert_ne!(nudged.canonical(), pairs);
 }
 
+/// Every setting added since worlds were first saved has a field to take
+/// a saved value over into, whose canonical text is the setting's, and
+/// whose old value gives that text back; no other name has one.
+#[test]
+fn every_added_setting_has_its_field() {
+    for &(name, old) in PlanetSettings::ADDED_SETTINGS {
+        let mut settings = PlanetSettings::earth(11);
+        let canonical = settings.canonical();
+        let value = |pairs: &[(&str, String)]| pairs.iter().find(|(n, _)| *n == name).unwrap().1.clone();
+        let field = settings.added_setting_mut(name).unwrap_or_else(|| panic!("{name} has no field"));
+        assert_eq!(format!("{field:?}"), value(&canonical), "{name}");
+        *field = old.parse().unwrap();
+        assert_eq!(value(&settings.canonical()), old, "{name}");
+    }
+    let mut settings = PlanetSettings::earth(11);
+    for name in ["radius", "seed", "band limit", ""] {
+        assert!(settings.added_setting_mut(name).is_none(), "{name}");
+    }
+}
+
 /// A random voxel column of some face, `per_edge` columns along its edge.
 fn random_column(state: &mut u64, per_edge: u32) -> (CubeFace, u32, u32) {
     let face = CubeFace::ALL[(unit_random(state) * 6.0) as usize % 6];

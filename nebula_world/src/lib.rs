@@ -136,6 +136,37 @@ pub struct World<S = ProceduralPlanet> {
 }
 
 impl World<ProceduralPlanet> {
+    /// `settings` with the settings added since worlds were first saved
+    /// ([`PlanetSettings::ADDED_SETTINGS`]: the band limit, caves, octave
+    /// grids) taken over from the world file at `path`, but for those
+    /// `given` names (a player's explicit choice, checked against the file
+    /// when it opens): a world saved before a new default opens as the
+    /// planet it was saved on. A file without one of them was saved before
+    /// it existed, and gets the value that gives its planet; no file yet,
+    /// or a file that cannot be read here (opening it says why), leaves
+    /// `settings` as they are.
+    ///
+    /// # Errors
+    /// [`WorldError::Corrupted`] for a saved value that is not a number.
+    pub fn saved_settings_over(
+        mut settings: PlanetSettings,
+        path: &Path,
+        given: &[&str],
+    ) -> Result<PlanetSettings, WorldError> {
+        let Ok(Some(saved)) = WorldStore::saved_settings(path) else { return Ok(settings) };
+        for &(name, old) in PlanetSettings::ADDED_SETTINGS.iter().filter(|(name, _)| !given.contains(name)) {
+            let text = saved.iter().find(|(n, _)| n == name).map_or(old, |(_, value)| value.as_str());
+            let value = text.parse().map_err(|_| WorldError::Corrupted {
+                path: path.into(),
+                reason: format!("saved setting {name}={text} is not a number"),
+            })?;
+            if let Some(field) = settings.added_setting_mut(name) {
+                *field = value;
+            }
+        }
+        Ok(settings)
+    }
+
     /// The procedural planet of `settings` with the edits saved at `path`
     /// (created if missing), or with no file at all (`None`: edits live in
     /// memory only).

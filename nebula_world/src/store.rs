@@ -220,6 +220,43 @@ impl WorldStore {
         Ok((store, edits))
     }
 
+    /// The terrain settings the world file at `path` was saved with, as
+    /// `(name, value)` pairs, read without changing the file: `None` where
+    /// there is no file yet, or where a killed writer left it to be rolled
+    /// back first (opening it for writing does that, [`WorldStore::open`]);
+    /// no pairs for a format-1 file, which names its planet by one text
+    /// and holds none of the settings added since.
+    ///
+    /// # Errors
+    /// [`WorldError::Corrupted`], [`WorldError::WrongVersion`],
+    /// [`WorldError::InUse`], [`WorldError::Storage`].
+    pub fn saved_settings(path: &Path) -> Result<Option<Vec<(String, String)>>, WorldError> {
+        if !std::fs::metadata(path).is_ok_and(|m| m.len() > 0) {
+            return Ok(None);
+        }
+        let db = match Builder::new().set_check_integrity_on_open(true).open_read_only(path) {
+            Ok(db) => db,
+            Err(DatabaseError::RepairAborted) => return Ok(None),
+            Err(e) => return Err(classify(path, e)),
+        };
+        let corrupted = |reason: String| WorldError::Corrupted { path: path.into(), reason };
+        let txn = db.begin_read().map_err(|e| corrupted(e.to_string()))?;
+        let meta = txn.open_table(META).map_err(|e| corrupted(format!("no meta table ({e})")))?;
+        let get = |name: &str| -> Result<Option<Vec<u8>>, WorldError> {
+            Ok(meta.get(name).map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec()))
+        };
+        match get("format")?.as_deref() {
+            Some(&[1]) => Ok(Some(Vec::new())),
+            Some(&[found]) if found == FORMAT_VERSION => get("settings")?
+                .as_deref()
+                .and_then(parse_settings)
+                .map(Some)
+                .ok_or_else(|| corrupted("no readable terrain settings".into())),
+            Some(&[found]) => Err(WorldError::WrongVersion { path: path.into(), found, supported: FORMAT_VERSION }),
+            _ => Err(corrupted("no format version".into())),
+        }
+    }
+
     fn with_db(db: Database, path: &Path) -> Self {
         Self {
             db: Some(db),

@@ -379,6 +379,9 @@ fn a_world_knows_its_terrain() {
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings.clone(), Some(&path)), Err(WorldError::OtherPlanet { .. })));
     assert!(std::fs::read(&path).unwrap() == bytes, "a format-1 file of another planet was modified");
+    // A format-1 file has none of the settings added since: taken over,
+    // they are those that give its planet.
+    assert_eq!(World::saved_settings_over(settings.clone(), &path, &[]).unwrap(), heightfield);
     let settings = heightfield;
     let opened = World::open(settings.clone(), Some(&path)).unwrap();
     assert_eq!(opened.source().voxel(at).unwrap(), Voxel::SNOW);
@@ -402,6 +405,35 @@ fn a_world_knows_its_terrain() {
     let bytes = std::fs::read(&path).unwrap();
     assert!(matches!(World::open(settings, Some(&path)), Err(WorldError::OtherPlanet { .. })));
     assert!(std::fs::read(&path).unwrap() == bytes, "a foreign format-1 file was modified");
+}
+
+#[test]
+fn a_world_keeps_the_settings_added_since_it_was_saved_unless_given() {
+    // A world saved before the presets' band limit and coarse grids (both
+    // 0 then) is refused with today's presets; with those two taken over
+    // from its file it opens with its edits. A setting given explicitly is
+    // kept, checked against the file, and refused untouched. No file yet:
+    // the settings as they were.
+    let presets = PlanetSettings::small(4);
+    assert!(presets.band_limit > 0.0 && presets.octave_grid_error > 0.0);
+    let saved = PlanetSettings { band_limit: 0.0, octave_grid_error: 0.0, ..presets.clone() };
+    let path = scratch("added-settings");
+    assert_eq!(World::saved_settings_over(presets.clone(), &path, &[]).unwrap(), presets);
+    let mut world = World::open(saved.clone(), Some(&path)).unwrap();
+    let ground = world.source().base().surface_point(DVec3::X);
+    let at = world.source().base().layout().voxel_at(ground).unwrap();
+    world.apply(&[Edit::Sphere { center: ground, radius: 3.0, voxel: Voxel::SNOW }]).unwrap();
+    assert_eq!(world.unsaved_chunks(), 0);
+    drop(world);
+    assert!(matches!(World::open(presets.clone(), Some(&path)), Err(WorldError::OtherPlanet { .. })));
+    let taken = World::saved_settings_over(presets.clone(), &path, &[]).unwrap();
+    assert_eq!(taken, saved);
+    assert_eq!(World::open(taken, Some(&path)).unwrap().source().voxel(at).unwrap(), Voxel::SNOW);
+    let given = World::saved_settings_over(presets.clone(), &path, &["band_limit"]).unwrap();
+    assert_eq!((given.band_limit, given.octave_grid_error), (presets.band_limit, 0.0));
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(matches!(World::open(given, Some(&path)), Err(WorldError::OtherPlanet { .. })));
+    assert!(std::fs::read(&path).unwrap() == bytes, "a refused world file was modified");
 }
 
 #[test]
