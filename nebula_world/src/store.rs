@@ -239,22 +239,11 @@ impl WorldStore {
             Err(DatabaseError::RepairAborted) => return Ok(None),
             Err(e) => return Err(classify(path, e)),
         };
-        let corrupted = |reason: String| WorldError::Corrupted { path: path.into(), reason };
-        let txn = db.begin_read().map_err(|e| corrupted(e.to_string()))?;
-        let meta = txn.open_table(META).map_err(|e| corrupted(format!("no meta table ({e})")))?;
-        let get = |name: &str| -> Result<Option<Vec<u8>>, WorldError> {
-            Ok(meta.get(name).map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec()))
-        };
-        match get("format")?.as_deref() {
-            Some(&[1]) => Ok(Some(Vec::new())),
-            Some(&[found]) if found == FORMAT_VERSION => get("settings")?
-                .as_deref()
-                .and_then(parse_settings)
-                .map(Some)
-                .ok_or_else(|| corrupted("no readable terrain settings".into())),
-            Some(&[found]) => Err(WorldError::WrongVersion { path: path.into(), found, supported: FORMAT_VERSION }),
-            _ => Err(corrupted("no format version".into())),
-        }
+        let txn = db.begin_read().map_err(|e| WorldError::Corrupted { path: path.into(), reason: e.to_string() })?;
+        Ok(Some(match read_identity(&txn, path)?.1 {
+            SavedTerrain::Legacy(_) => Vec::new(),
+            SavedTerrain::Versioned { settings, .. } => settings,
+        }))
     }
 
     fn with_db(db: Database, path: &Path) -> Self {
@@ -385,6 +374,44 @@ fn classify(path: &Path, error: DatabaseError) -> WorldError {
     }
 }
 
+/// What a world file says its edits were made on.
+enum SavedTerrain {
+    /// Format 1: the planet's settings as one text (before versioned
+    /// terrain).
+    Legacy(String),
+    /// The generator, its code version and its canonical settings.
+    Versioned { generator: String, version: u32, settings: Vec<(String, String)> },
+}
+
+/// The file's format and the terrain it names, from its meta table.
+fn read_identity(txn: &redb::ReadTransaction, path: &Path) -> Result<(u8, SavedTerrain), WorldError> {
+    let corrupted = |reason: String| WorldError::Corrupted { path: path.into(), reason };
+    let meta = txn.open_table(META).map_err(|e| corrupted(format!("no meta table ({e})")))?;
+    let get = |name: &str| -> Result<Option<Vec<u8>>, WorldError> {
+        Ok(meta.get(name).map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec()))
+    };
+    let text = |bytes: Vec<u8>| String::from_utf8_lossy(&bytes).into_owned();
+    let format = match get("format")?.as_deref() {
+        Some(&[found]) if found == FORMAT_VERSION || found == 1 => found,
+        Some(&[found]) => return Err(WorldError::WrongVersion { path: path.into(), found, supported: FORMAT_VERSION }),
+        _ => return Err(corrupted("no format version".into())),
+    };
+    if format == 1 {
+        let planet = get("planet")?.ok_or_else(|| corrupted("no planet".into()))?;
+        return Ok((format, SavedTerrain::Legacy(text(planet))));
+    }
+    let generator = text(get("generator")?.ok_or_else(|| corrupted("no terrain generator".into()))?);
+    let version = get("terrain_version")?
+        .and_then(|v| <[u8; 4]>::try_from(v.as_slice()).ok())
+        .map(u32::from_le_bytes)
+        .ok_or_else(|| corrupted("no terrain version".into()))?;
+    let settings = get("settings")?
+        .as_deref()
+        .and_then(parse_settings)
+        .ok_or_else(|| corrupted("no readable terrain settings".into()))?;
+    Ok((format, SavedTerrain::Versioned { generator, version, settings }))
+}
+
 /// The file's format and every saved edit, after checking the format, the
 /// terrain and each value.
 fn read_all(
@@ -394,54 +421,39 @@ fn read_all(
 ) -> Result<(u8, Vec<(VoxelCoord, Voxel)>), WorldError> {
     let corrupted = |reason: String| WorldError::Corrupted { path: path.into(), reason };
     let txn = db.begin_read().map_err(|e| corrupted(e.to_string()))?;
-    let meta = txn.open_table(META).map_err(|e| corrupted(format!("no meta table ({e})")))?;
-    let get = |name: &str| -> Result<Option<Vec<u8>>, WorldError> {
-        Ok(meta.get(name).map_err(|e| corrupted(e.to_string()))?.map(|v| v.value().to_vec()))
-    };
-    let format = match get("format")?.as_deref() {
-        Some(&[found]) if found == FORMAT_VERSION || found == 1 => found,
-        Some(&[found]) => return Err(WorldError::WrongVersion { path: path.into(), found, supported: FORMAT_VERSION }),
-        _ => return Err(corrupted("no format version".into())),
-    };
-    if format == 1 {
-        let stored = get("planet")?.ok_or_else(|| corrupted("no planet".into()))?;
-        let stored = String::from_utf8_lossy(&stored).into_owned();
-        if terrain.legacy.as_deref() != Some(stored.as_str()) {
-            let given =
-                terrain.legacy.clone().unwrap_or_else(|| format!("{} version {}", terrain.generator, terrain.version));
-            return Err(WorldError::OtherPlanet { path: path.into(), stored, given });
+    let (format, saved) = read_identity(&txn, path)?;
+    match saved {
+        SavedTerrain::Legacy(stored) => {
+            if terrain.legacy.as_deref() != Some(stored.as_str()) {
+                let given = terrain
+                    .legacy
+                    .clone()
+                    .unwrap_or_else(|| format!("{} version {}", terrain.generator, terrain.version));
+                return Err(WorldError::OtherPlanet { path: path.into(), stored, given });
+            }
         }
-    } else {
-        let generator = get("generator")?.ok_or_else(|| corrupted("no terrain generator".into()))?;
-        let generator = String::from_utf8_lossy(&generator).into_owned();
-        let version = get("terrain_version")?
-            .and_then(|v| <[u8; 4]>::try_from(v.as_slice()).ok())
-            .map(u32::from_le_bytes)
-            .ok_or_else(|| corrupted("no terrain version".into()))?;
-        let settings = get("settings")?
-            .as_deref()
-            .and_then(parse_settings)
-            .ok_or_else(|| corrupted("no readable terrain settings".into()))?;
-        if generator != terrain.generator {
-            return Err(WorldError::OtherPlanet {
+        SavedTerrain::Versioned { generator, version, settings } => {
+            if generator != terrain.generator {
+                return Err(WorldError::OtherPlanet {
+                    path: path.into(),
+                    stored: generator,
+                    given: terrain.generator.clone(),
+                });
+            }
+            if version != terrain.version {
+                return Err(WorldError::TerrainVersion {
+                    path: path.into(),
+                    generator,
+                    stored: version,
+                    this_build: terrain.version,
+                });
+            }
+            terrain.compare_settings(&settings).map_err(|(stored, given)| WorldError::OtherPlanet {
                 path: path.into(),
-                stored: generator,
-                given: terrain.generator.clone(),
-            });
+                stored,
+                given,
+            })?;
         }
-        if version != terrain.version {
-            return Err(WorldError::TerrainVersion {
-                path: path.into(),
-                generator,
-                stored: version,
-                this_build: terrain.version,
-            });
-        }
-        terrain.compare_settings(&settings).map_err(|(stored, given)| WorldError::OtherPlanet {
-            path: path.into(),
-            stored,
-            given,
-        })?;
     }
     let table = txn.open_table(CHUNK_EDITS).map_err(|e| corrupted(format!("no chunk table ({e})")))?;
     let mut edits = Vec::new();
