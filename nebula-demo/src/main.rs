@@ -639,6 +639,9 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
         write_png(&path.with_file_name(format!("{stem}-reference.png")), &reference.rgba, reference.size)?;
         let reference_depth = app.renderer().read_view_depth()?;
         let error = nebula_render::picture_error::depth_error(&depth, &reference_depth, picture.size)?;
+        // And without the depth tolerance, which lets ground at a grazing
+        // angle move by a second pixel.
+        let strict = nebula_render::picture_error::depth_error_within(&depth, &reference_depth, picture.size, 0.0)?;
         write_png(&path.with_file_name(format!("{stem}-error.png")), &error.marked(&picture.rgba), picture.size)?;
         report["picture_error"] = serde_json::json!({
             "reference_sse": sse_px,
@@ -647,6 +650,8 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
             "reference_triangles": reference.figures.frame.triangles,
             "wrong_pixels": error.wrong_pixels(),
             "share": error.share(),
+            "wrong_pixels_without_tolerance": strict.wrong_pixels(),
+            "share_without_tolerance": strict.share(),
         });
     }
     println!("wrote {} ({})", path.display(), report);

@@ -46,6 +46,14 @@
 /// How far, as a share of the distance, a surface may lie outside the
 /// distances around it in the other picture and still count as the same:
 /// 1 % (20 m two kilometres away, a metre at 100 m).
+///
+/// At a grazing angle that is more than it seems: 3° down through a 12°
+/// lens at 640×400, ground's distance grows by about 1 % a row, so the
+/// tolerance lets a surface move by a second pixel. [`depth_error_within`]
+/// with 0 counts only what moved by more than the one pixel τ = 1 allows:
+/// through that lens τ = 1 leaves 501 pixels wrong that way (378 with the
+/// tolerance), τ = 1.5 leaves 12,141 (631 with it), nearly all of them
+/// inside the ground (README, "Where τ = 1 stands").
 pub const DEPTH_TOLERANCE: f32 = 0.01;
 
 /// The pixels of a picture that differ from a reference by more than a
@@ -108,6 +116,22 @@ pub enum PictureErrorError {
 /// [`PictureErrorError::WrongLength`] when a depth list is not one value a
 /// pixel.
 pub fn depth_error(test: &[f32], reference: &[f32], size: (u32, u32)) -> Result<PictureError, PictureErrorError> {
+    depth_error_within(test, reference, size, DEPTH_TOLERANCE)
+}
+
+/// [`depth_error`] with `tolerance` (a share of the distance, 0 or more)
+/// in place of [`DEPTH_TOLERANCE`]: 0 counts every surface that moved by
+/// more than a pixel, however fast its distance changes from pixel to
+/// pixel.
+///
+/// # Errors
+/// As [`depth_error`].
+pub fn depth_error_within(
+    test: &[f32],
+    reference: &[f32],
+    size: (u32, u32),
+    tolerance: f32,
+) -> Result<PictureError, PictureErrorError> {
     let (width, height) = size;
     let expected = u64::from(width) * u64::from(height);
     for picture in [test, reference] {
@@ -131,7 +155,7 @@ pub fn depth_error(test: &[f32], reference: &[f32], size: (u32, u32)) -> Result<
         let (low, high) = around
             .filter(|d| d.is_finite())
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), d| (low.min(d), high.max(d)));
-        low <= depth * (1.0 + DEPTH_TOLERANCE) && high >= depth * (1.0 - DEPTH_TOLERANCE)
+        low <= depth * (1.0 + tolerance) && high >= depth * (1.0 - tolerance)
     };
     // The pixels on the picture's edge have no neighbours past it to
     // bracket a surface moved across the edge: they are left out.
@@ -204,6 +228,28 @@ mod tests {
         assert_eq!(wrong(1.0), 0);
         // Every pixel compared: 6 × 38.
         assert_eq!(wrong(3.0), 6 * 38);
+    }
+
+    /// Ground 1 % further each row (3° down through a 12° lens): moved by
+    /// a pixel it is right with or without the tolerance; by two rows the
+    /// 1 % tolerance still calls it right, and only the measure without it
+    /// counts the second row's movement.
+    #[test]
+    fn the_depth_tolerance_lets_grazing_ground_move_a_second_pixel() {
+        let size = (8, 40);
+        let ramp = |shift: f32| -> Vec<f32> {
+            (0..size.0 * size.1).map(|n| 2000.0 * 1.009f32.powf((n / size.0) as f32 + shift)).collect()
+        };
+        let reference = ramp(0.0);
+        let wrong = |shift: f32, tolerance: f32| {
+            depth_error_within(&ramp(shift), &reference, size, tolerance).unwrap().wrong_pixels()
+        };
+        assert_eq!((wrong(1.0, DEPTH_TOLERANCE), wrong(1.0, 0.0)), (0, 0));
+        assert_eq!(wrong(2.0, DEPTH_TOLERANCE), 0);
+        assert_eq!(wrong(2.0, 0.0), 6 * 38);
+        assert_eq!(depth_error(&ramp(2.0), &reference, size).unwrap(), {
+            depth_error_within(&ramp(2.0), &reference, size, DEPTH_TOLERANCE).unwrap()
+        });
     }
 
     #[test]
