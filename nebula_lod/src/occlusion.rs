@@ -48,15 +48,6 @@ const MAX_BEARING_BINS: usize = 1 << 14;
 /// Bearing bins all round the eye at least.
 const MIN_BEARING_BINS: usize = 1 << 8;
 
-/// One rise of the horizon on a bearing bin: from `angle` (radians from
-/// the eye's direction) on, lines of sight with an elevation slope below
-/// `slope` are blocked.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Step {
-    angle: f64,
-    slope: f64,
-}
-
 /// The ground's horizon around an eye, bearing by bearing, built from the
 /// floors of leaves in front ([`TerrainHorizon::new`]).
 #[derive(Clone, Debug)]
@@ -68,15 +59,29 @@ pub struct TerrainHorizon {
     /// Two unit vectors across `up`: bearing 0 and bearing π/2.
     east: DVec3,
     north: DVec3,
-    /// Per bearing bin, rises ordered by angle, each higher than the one
-    /// before.
-    bins: Vec<Vec<Step>>,
+    /// How many bearing bins there are.
+    bins: usize,
+    /// The rises of the horizon, bin after bin: bin `b`'s are
+    /// `bin_starts[b]..bin_starts[b + 1]`, ordered by angle, each higher
+    /// than the one before. A rise: from `angles[i]` (radians from the
+    /// eye's direction) on, lines of sight with an elevation slope below
+    /// `slopes[i]` are blocked. (In two flat lists, not a list a bin: the
+    /// clearance test's binary searches over every bin a leaf spans were
+    /// most of its time, waiting on memory.)
+    bin_starts: Vec<usize>,
+    angles: Vec<f64>,
+    slopes: Vec<f64>,
 }
 
 /// tan of the elevation angle, seen from distance `d` from the centre on
 /// the axis, of a point at radius `r` and `angle` from the axis.
 fn slope(d: f64, r: f64, angle: f64) -> f64 {
-    (r * angle.cos() - d) / (r * angle.sin())
+    slope_at(d, r, angle.sin_cos())
+}
+
+/// [`slope`] with the angle's sine and cosine already at hand.
+fn slope_at(d: f64, r: f64, (sin, cos): (f64, f64)) -> f64 {
+    (r * cos - d) / (r * sin)
 }
 
 impl TerrainHorizon {
@@ -92,7 +97,16 @@ impl TerrainHorizon {
         let up = eye.normalize_or_zero();
         let east = up.any_orthonormal_vector();
         let north = up.cross(east);
-        let mut horizon = Self { up, distance, east, north, bins: vec![Vec::new(); MIN_BEARING_BINS] };
+        let mut horizon = Self {
+            up,
+            distance,
+            east,
+            north,
+            bins: MIN_BEARING_BINS,
+            bin_starts: vec![0; MIN_BEARING_BINS + 1],
+            angles: Vec::new(),
+            slopes: Vec::new(),
+        };
         if !(distance > 0.0 && distance.is_finite() && margin.is_finite()) {
             return horizon;
         }
@@ -129,7 +143,8 @@ impl TerrainHorizon {
             }
             let Some(floor) = floor.map(|floor| floor - margin) else { continue };
             if let Some(half) = half_arc(&bounds, floor, angle, sin_cos) {
-                rises.push((angle, slope(distance, floor, angle), horizon.bearing(bounds.center_direction), half));
+                let rise = slope_at(distance, floor, sin_cos);
+                rises.push((angle, rise, horizon.bearing(bounds.center_direction), half));
             }
         }
         // Bins about a third of the median arc: an arc then covers two or
@@ -140,21 +155,42 @@ impl TerrainHorizon {
             let (_, median, _) = halves.select_nth_unstable_by(middle, f64::total_cmp);
             let wanted = TAU / (2.0 * *median / 3.0);
             let bins = if wanted.is_finite() { (wanted as usize).next_power_of_two() } else { MAX_BEARING_BINS };
-            horizon.bins = vec![Vec::new(); bins.clamp(MIN_BEARING_BINS, MAX_BEARING_BINS)];
+            horizon.bins = bins.clamp(MIN_BEARING_BINS, MAX_BEARING_BINS);
         }
         rises.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        let count = horizon.bins.len() as i64;
+        let count = horizon.bins as i64;
         let width = TAU / count as f64;
+        // Each bin's highest rise so far, and the rises kept, in order.
+        let mut highest: Vec<Option<f64>> = vec![None; horizon.bins];
+        let mut kept: Vec<(usize, f64, f64)> = Vec::new();
         for (angle, rise, bearing, half) in rises {
             // The bins wholly inside [bearing − half, bearing + half].
             let first = ((bearing - half) / width).ceil() as i64;
             let last = ((bearing + half) / width).floor() as i64 - 1;
             for bin in first..=last.min(first + count - 1) {
-                let steps = &mut horizon.bins[bin.rem_euclid(count) as usize];
-                if steps.last().is_none_or(|s| rise > s.slope) {
-                    steps.push(Step { angle, slope: rise });
+                let bin = bin.rem_euclid(count) as usize;
+                if highest[bin].is_none_or(|slope| rise > slope) {
+                    highest[bin] = Some(rise);
+                    kept.push((bin, angle, rise));
                 }
             }
+        }
+        // Bin by bin, each bin's in the order kept (by angle).
+        let starts = &mut horizon.bin_starts;
+        starts.clear();
+        starts.resize(horizon.bins + 1, 0);
+        for &(bin, _, _) in &kept {
+            starts[bin + 1] += 1;
+        }
+        for bin in 0..horizon.bins {
+            starts[bin + 1] += starts[bin];
+        }
+        let mut next = starts.clone();
+        (horizon.angles, horizon.slopes) = (vec![0.0; kept.len()], vec![0.0; kept.len()]);
+        for (bin, angle, rise) in kept {
+            let at = next[bin];
+            (horizon.angles[at], horizon.slopes[at]) = (angle, rise);
+            next[bin] += 1;
         }
         horizon
     }
@@ -190,7 +226,7 @@ impl TerrainHorizon {
             return None;
         }
         let half = (bounds.angular_radius.sin() / centre.sin()).min(1.0).asin();
-        let count = self.bins.len() as i64;
+        let count = self.bins as i64;
         let width = TAU / count as f64;
         let bearing = self.bearing(bounds.center_direction);
         let first = ((bearing - half) / width).floor() as i64;
@@ -198,21 +234,23 @@ impl TerrainHorizon {
         if last - first >= count {
             return None;
         }
-        // The lowest of the bins' highest rises nearer than the bounds
-        // (a bin with none: the lowest surface is seen, whatever it is).
-        let mut lowest_rise = f64::INFINITY;
+        // Seen where a line of sight over some bin clears the lowest
+        // surface: where a bin's highest rise nearer than the bounds is no
+        // higher than the lowest surface's highest elevation, or where a
+        // bin has none. Asked bin by bin, so a leaf seen (most of a
+        // view's) is told at its first such bin.
+        let mut clearance = Clearance { slope: f64::INFINITY, distance: self.distance, near, far };
+        let lowest_surface = clearance.highest(bounds.min_radius);
         for bin in first..=last {
-            let steps = &self.bins[bin.rem_euclid(count) as usize];
-            let nearer = steps.partition_point(|s| s.angle < near);
-            if nearer == 0 {
+            let bin = bin.rem_euclid(count) as usize;
+            let start = self.bin_starts[bin];
+            let nearer = self.angles[start..self.bin_starts[bin + 1]].partition_point(|&angle| angle < near);
+            if nearer == 0 || self.slopes[start + nearer - 1] <= lowest_surface {
                 return None;
             }
-            lowest_rise = lowest_rise.min(steps[nearer - 1].slope);
+            clearance.slope = clearance.slope.min(self.slopes[start + nearer - 1]);
         }
-        let clearance = Clearance { slope: lowest_rise, distance: self.distance, near, far };
-        // Seen where a line of sight over some bin clears the lowest
-        // surface.
-        (lowest_rise > clearance.highest(bounds.min_radius)).then_some(clearance)
+        Some(clearance)
     }
 }
 
