@@ -413,6 +413,19 @@ pub fn draw_into(
     })
 }
 
+/// The chunks the app's current draw list shows from `shot`'s view, by
+/// LOD: drawn once more with [`DebugView::Ids`] and read back
+/// ([`nebula_render::seen`]).
+///
+/// # Errors
+/// Read-back failures.
+pub fn seen_chunks(app: &mut PlanetApp, shot: &Shot) -> anyhow::Result<nebula_render::seen::SeenChunks> {
+    let target = Offscreen::new(app.gpu(), shot.size)?;
+    app.draw(&target.view, shot.size, shot.background, DebugView::Ids);
+    let rgba = target.read(app.gpu()).context("reading the chunk numbers back")?;
+    Ok(nebula_render::seen::seen_chunks(&rgba))
+}
+
 /// Writes RGBA8 pixels as a PNG.
 ///
 /// # Errors

@@ -2,7 +2,7 @@
 //! headless to PNG with a JSON report.
 //!
 //! Keys: W/A/S/D move, Q/E down/up, mouse (hold the middle button) looks,
-//! Shift ×10 speed, O jumps between orbit and the surface, 1–6 debug views
+//! Shift ×10 speed, O jumps between orbit and the surface, 1–7 debug views
 //! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours),
 //! Esc quits. Speed scales with altitude. Left click digs out the voxel at
 //! the centre of the window, right click places one against it (M cycles
@@ -128,7 +128,7 @@ struct Args {
     /// terrain itself. Both are drawn with one sample per pixel
     #[arg(long, value_name = "PX")]
     reference_sse: Option<f64>,
-    /// Debug view: shaded, lod, skirts, morph, wireframe or chunks.
+    /// Debug view: shaded, lod, skirts, morph, wireframe, chunks or ids (each chunk's number and LOD as bytes).
     #[arg(long, value_name = "VIEW", default_value = "shaded")]
     view: DebugView,
     /// Write the frame's figures as JSON here (with --flight: every frame's
@@ -607,10 +607,14 @@ fn headless(planet: Arc<PlanetVoxels>, shot: &Shot, args: &Args) -> anyhow::Resu
     }
     let picture = render_app(&mut app, shot)?;
     let depth = if measured { app.renderer().read_view_depth()? } else { Vec::new() };
+    // What the drawn chunks show: those with a pixel, by LOD.
+    let seen = nebula_demo::headless::seen_chunks(&mut app, shot)?;
     drop(app);
     let path = args.screenshot.clone().unwrap_or_else(|| PathBuf::from("nebula.png"));
     write_png(&path, &picture.rgba, picture.size)?;
     let mut report = report_json(&picture.figures, &picture.adapter);
+    report["seen_chunks"] = serde_json::json!(seen.chunks);
+    report["seen_lod_histogram"] = serde_json::json!(seen.by_lod);
     if let Some(sse_px) = args.reference_sse {
         // The same view at a finer error, on its own streamer.
         let reference_shot = Shot { sse_px, ..shot.clone() };
@@ -1011,6 +1015,7 @@ impl ApplicationHandler for Windowed {
                         KeyCode::Digit4 => self.view = DebugView::Morph,
                         KeyCode::Digit5 => self.view = DebugView::Wireframe,
                         KeyCode::Digit6 => self.view = DebugView::Chunks,
+                        KeyCode::Digit7 => self.view = DebugView::Ids,
                         KeyCode::KeyG => {
                             self.walker = match self.walker {
                                 Some(_) => None,

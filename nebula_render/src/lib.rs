@@ -78,6 +78,7 @@ mod cull;
 pub mod picture_error;
 pub mod readback;
 mod renderer;
+pub mod seen;
 pub mod sun;
 
 pub use cull::CullFigures;

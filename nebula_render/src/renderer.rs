@@ -156,17 +156,23 @@ pub enum DebugView {
     Wireframe,
     /// One colour per chunk, so chunk bounds show.
     Chunks,
+    /// Each chunk's own number, unlit, for counting what shows
+    /// ([`seen_chunks`](crate::seen::seen_chunks)): the 24-bit hash of its key in
+    /// red, green and blue, its LOD in alpha (0–24; the background's alpha
+    /// stays 255).
+    Ids,
 }
 
 impl DebugView {
-    /// Every view with its name, in key order (1–6 in the demo's window).
-    pub const ALL: [(&'static str, DebugView); 6] = [
+    /// Every view with its name, in key order (1–7 in the demo's window).
+    pub const ALL: [(&'static str, DebugView); 7] = [
         ("shaded", DebugView::Shaded),
         ("lod", DebugView::Lod),
         ("skirts", DebugView::Skirts),
         ("morph", DebugView::Morph),
         ("wireframe", DebugView::Wireframe),
         ("chunks", DebugView::Chunks),
+        ("ids", DebugView::Ids),
     ];
 }
 
@@ -199,7 +205,8 @@ pub struct GpuMesh {
     bounds: MeshBox,
     /// The chunk's LOD.
     pub lod: u8,
-    /// A small number from the chunk key, for the chunk-colour view.
+    /// A 24-bit number from the chunk key, for the chunk-colour and id
+    /// views.
     pub id: u32,
     /// Bytes it takes in the renderer's buffers (its vertices, indices and
     /// skirt edges, rounded up to whole vertices and then to the arena's
@@ -488,7 +495,8 @@ impl MeshUploader {
     /// streamer's mesh maker does, [`PlanetRenderer::upload`]).
     #[must_use]
     pub fn upload(&self, key: ChunkKey, mesh: &RenderMesh) -> GpuMesh {
-        // A small number from the key, for the chunk-colour view.
+        // A number from the key, for the chunk-colour and id views (24
+        // bits: exact as the shader's f32).
         let id = key.x.wrapping_mul(73_856_093)
             ^ key.y.wrapping_mul(19_349_663)
             ^ (key.layer as u32).wrapping_mul(83_492_791)
@@ -524,7 +532,7 @@ impl MeshUploader {
             surface_parts: mesh.surface_parts.clone().map(narrow_range),
             skirt_ranges: mesh.skirt_ranges.clone().map(narrow_range),
             lod: key.lod,
-            id: id % 4096,
+            id: id % (1 << 24),
         }
     }
 

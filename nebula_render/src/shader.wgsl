@@ -359,7 +359,7 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     } else if (view == 4u) {
         base = vec3<f32>(0.95, 0.95, 0.95);
     } else if (view == 5u) {
-        base = lod_colour(in.lod_id.y * 0.37 + 0.1);
+        base = lod_colour(f32(u32(in.lod_id.y) % 4096u) * 0.37 + 0.1);
     }
     var out: TerrainOut;
     out.colour = vec4<f32>(encode(base * light), 1.0);
@@ -379,6 +379,12 @@ fn fs_main(in: VertexOut) -> TerrainOut {
     let below_sea = length(in.relative + frame.eye_high.xyz + frame.eye_low.xyz) < frame.planet.x;
     let drowned_side = abs(facing) <= 0.7 && landform < 0.5 && below_sea;
     out.sea = select(0.0, 1.0, in.material == 6u || drowned_side);
+    if (view == 6u) {
+        // The chunk's number and LOD as bytes (DebugView::Ids).
+        let id = u32(in.lod_id.y);
+        let bytes = vec4<u32>(id & 255u, (id >> 8u) & 255u, (id >> 16u) & 255u, u32(in.lod_id.x));
+        out.colour = vec4<f32>(bytes) / 255.0;
+    }
     return out;
 }
 

@@ -16,7 +16,8 @@
 use nebula_demo::app::{DrawOptions, MorphRule, OpaqueSea, PlanetApp};
 use nebula_demo::flight::{Flight, FlightReport, Keyframe, fly};
 use nebula_demo::headless::{
-    Picture, Shot, draw_frame, prepare_shot, render_app, report_json, settle_and_draw, shot_view, write_png,
+    Picture, Shot, draw_frame, prepare_shot, render_app, report_json, seen_chunks, settle_and_draw, shot_view,
+    write_png,
 };
 use nebula_render::DebugView;
 use nebula_render::context::GpuContext;
@@ -930,6 +931,35 @@ fn the_ground_hides_only_what_changes_no_pixel() {
         (with, without) = (with + after, without + before);
     }
     assert!((with as f64) < 0.97 * without as f64, "the hidden ground saved too little to tell: {without} → {with}");
+}
+
+/// The chunk-number view (`DebugView::Ids`) covers exactly the pixels the
+/// shaded view covers over the background, and names only chunks that are
+/// drawn: low over a cube corner (many LODs), several chunks at several
+/// LODs show, never more at a LOD than are drawn there. An id view that
+/// drew one number everywhere, or lit colours, or left out chunks, fails.
+#[test]
+fn the_chunks_a_view_shows_are_counted_among_those_drawn() {
+    if !adapter_or_skip("seen chunks") {
+        return;
+    }
+    let (settings, shot) = low_over_a_corner();
+    let mut app = app(&settings, &shot, DrawOptions::default());
+    let picture = render_app(&mut app, &shot).expect("renders");
+    let seen = seen_chunks(&mut app, &shot).expect("reads back");
+    let frame = &picture.figures.frame;
+    println!(
+        "{} of {} drawn chunks show: {:?} of {:?} by LOD",
+        seen.chunks, frame.chunks, seen.by_lod, frame.lod_histogram
+    );
+    let covered = picture.rgba.chunks_exact(4).filter(|pixel| pixel[..3] != SENTINEL).count();
+    assert_eq!(seen.pixels, covered as u64, "the same pixels covered");
+    assert_eq!(seen.by_lod.iter().sum::<usize>(), seen.chunks);
+    assert!(seen.chunks > 10 && seen.chunks <= frame.chunks, "{} of {}", seen.chunks, frame.chunks);
+    for (lod, &shown) in seen.by_lod.iter().enumerate() {
+        assert!(shown <= frame.lod_histogram.get(lod).copied().unwrap_or(0), "LOD {lod}: {shown} shown");
+    }
+    assert!(seen.by_lod.iter().filter(|&&shown| shown > 0).count() >= 3, "{:?}", seen.by_lod);
 }
 
 /// Occlusion culling on the GPU (`PlanetRenderer::set_occlusion_culling`,
