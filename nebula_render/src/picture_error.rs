@@ -213,15 +213,20 @@ mod tests {
         assert!((error.share() - 36.0 / 660.0).abs() < 1e-12);
     }
 
+    /// A `size` depth picture of ground at a grazing angle, `near` metres
+    /// away in its first row and `growth` times further each row after,
+    /// moved down by `shift` rows.
+    fn ramp(size: (u32, u32), near: f32, growth: f32, shift: f32) -> Vec<f32> {
+        (0..size.0 * size.1).map(|n| near * growth.powf((n / size.0) as f32 + shift)).collect()
+    }
+
     /// Ground at a grazing angle, 10 % further each row: moved by half a
     /// row or one row it is right (its distance lies between those around
     /// it), by three rows wrong.
     #[test]
     fn grazing_ground_moved_by_part_of_a_pixel_is_right() {
         let size = (8, 40);
-        let ramp = |shift: f32| -> Vec<f32> {
-            (0..size.0 * size.1).map(|n| 100.0 * 1.1f32.powf((n / size.0) as f32 + shift)).collect()
-        };
+        let ramp = |shift: f32| ramp(size, 100.0, 1.1, shift);
         let reference = ramp(0.0);
         let wrong = |shift| depth_error(&ramp(shift), &reference, size).unwrap().wrong_pixels();
         assert_eq!(wrong(0.5), 0);
@@ -237,9 +242,7 @@ mod tests {
     #[test]
     fn the_depth_tolerance_lets_grazing_ground_move_a_second_pixel() {
         let size = (8, 40);
-        let ramp = |shift: f32| -> Vec<f32> {
-            (0..size.0 * size.1).map(|n| 2000.0 * 1.009f32.powf((n / size.0) as f32 + shift)).collect()
-        };
+        let ramp = |shift: f32| ramp(size, 2000.0, 1.009, shift);
         let reference = ramp(0.0);
         let wrong = |shift: f32, tolerance: f32| {
             depth_error_within(&ramp(shift), &reference, size, tolerance).unwrap().wrong_pixels()
