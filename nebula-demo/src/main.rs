@@ -3,7 +3,8 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up, mouse (hold the middle button) looks,
 //! Shift ×10 speed, O jumps between orbit and the surface, 1–7 debug views
-//! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours),
+//! (shaded, LOD colours, skirts, morph factor, wireframe, chunk colours,
+//! chunk numbers),
 //! Esc quits. Speed scales with altitude. Left click digs out the voxel at
 //! the centre of the window, right click places one against it (M cycles
 //! the material); with `--world` every edit is saved at once. G switches
@@ -368,6 +369,18 @@ fn parse_rgb(text: &str) -> Result<[u8; 3], String> {
         .collect::<Result<_, _>>()?;
     <[u8; 3]>::try_from(parts).map_err(|_| format!("expected R,G,B, got '{text}'"))
 }
+
+/// The window's keys for the debug views, in [`DebugView::ALL`]'s order
+/// (one per view: the length is the list's).
+const VIEW_KEYS: [KeyCode; DebugView::ALL.len()] = [
+    KeyCode::Digit1,
+    KeyCode::Digit2,
+    KeyCode::Digit3,
+    KeyCode::Digit4,
+    KeyCode::Digit5,
+    KeyCode::Digit6,
+    KeyCode::Digit7,
+];
 
 fn main() -> std::process::ExitCode {
     // The libraries report through `log`: warnings and errors by default,
@@ -1009,13 +1022,9 @@ impl ApplicationHandler for Windowed {
                     self.keys.insert(code);
                     match code {
                         KeyCode::Escape => event_loop.exit(),
-                        KeyCode::Digit1 => self.view = DebugView::Shaded,
-                        KeyCode::Digit2 => self.view = DebugView::Lod,
-                        KeyCode::Digit3 => self.view = DebugView::Skirts,
-                        KeyCode::Digit4 => self.view = DebugView::Morph,
-                        KeyCode::Digit5 => self.view = DebugView::Wireframe,
-                        KeyCode::Digit6 => self.view = DebugView::Chunks,
-                        KeyCode::Digit7 => self.view = DebugView::Ids,
+                        code if let Some(n) = VIEW_KEYS.iter().position(|&key| key == code) => {
+                            self.view = DebugView::ALL[n].1;
+                        }
                         KeyCode::KeyG => {
                             self.walker = match self.walker {
                                 Some(_) => None,
