@@ -249,6 +249,7 @@ impl FlightReport {
                     "skirt_triangles": f.figures.frame.skirt_triangles,
                     "unsettled": f.figures.frame.unsettled,
                     "stand_ins": f.figures.frame.stand_ins,
+                    "backstops": f.figures.frame.backstops,
                     "max_stand_in_levels": f.figures.frame.max_stand_in_levels,
                     "jobs_in_flight": f.figures.frame.jobs_in_flight,
                     "prefetch_jobs": f.figures.frame.prefetch_jobs,

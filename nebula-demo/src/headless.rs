@@ -492,6 +492,7 @@ pub fn report_json(figures: &Figures, adapter: &str) -> serde_json::Value {
         "max_stand_in_levels": f.max_stand_in_levels,
         "prefetch_jobs": f.prefetch_jobs,
         "behind_horizon": f.behind_horizon,
+        "backstops": f.backstops,
         "under_sea": f.under_sea,
         "lod_histogram": histogram,
         "lod_triangles": lod_triangles,

@@ -1710,12 +1710,17 @@ impl GpuTimer {
 
 /// The shader with the terrain's depth declared multisampled, for the sky
 /// pass over a multisampled terrain (`textureLoad`'s last argument is then
-/// the sample, 0, where it was the mip level, 0).
+/// the sample, 0, where it was the mip level, 0), and its samples a pixel
+/// ([`SMOOTH_SAMPLES`]) counted.
 fn multisampled_depth_shader() -> String {
     const DECLARATION: &str = "var terrain_depth: texture_depth_2d;";
     let source = include_str!("shader.wgsl");
     debug_assert!(source.contains(DECLARATION), "shader.wgsl no longer declares {DECLARATION}");
-    source.replace(DECLARATION, "var terrain_depth: texture_depth_multisampled_2d;")
+    const SAMPLES: &str = "const DEPTH_SAMPLES: i32 = 1;";
+    debug_assert!(source.contains(SAMPLES), "shader.wgsl no longer declares {SAMPLES}");
+    source
+        .replace(DECLARATION, "var terrain_depth: texture_depth_multisampled_2d;")
+        .replace(SAMPLES, &format!("const DEPTH_SAMPLES: i32 = {SMOOTH_SAMPLES};"))
 }
 
 /// A bind group layout of one read-only storage buffer the vertex shaders
@@ -1825,12 +1830,14 @@ mod tests {
     use super::*;
 
     /// The multisampled sky pass's shader is the shader with its depth
-    /// declaration replaced: if the declaration changes, so must this.
+    /// declaration and its samples a pixel replaced: if either changes, so
+    /// must this.
     #[test]
     fn the_sky_pass_has_a_multisampled_depth_variant() {
         let source = multisampled_depth_shader();
         assert!(source.contains("var terrain_depth: texture_depth_multisampled_2d;"));
         assert!(!source.contains("texture_depth_2d;"));
+        assert!(source.contains(&format!("const DEPTH_SAMPLES: i32 = {SMOOTH_SAMPLES};")));
     }
 
     /// Under sea level over the sea is in the sea; the same depth under land

@@ -400,6 +400,22 @@ fn fs_main(in: VertexOut) -> TerrainOut {
 
 @group(1) @binding(0) var terrain_depth: texture_depth_2d;
 @group(1) @binding(1) var sea_mask: texture_2d<f32>;
+// Samples a pixel of `terrain_depth` has (4 in the multisampled shader,
+// where `textureLoad`'s last argument is the sample; here it is the mip level).
+const DEPTH_SAMPLES: i32 = 1;
+
+// Whether the terrain drawn at `pixel` is mostly sea bed: the resolved sea
+// mask is the share of all its samples that are sea bed, and this is that
+// share among the samples something was drawn at. A pixel where sea bed
+// meets nothing drawn (ground left out behind the horizon, under the sea
+// that covers both) is sea, as either half is on its own.
+fn sea_bed_at(pixel: vec2<i32>) -> bool {
+    var drawn = 0.0;
+    for (var s = 0; s < DEPTH_SAMPLES; s = s + 1) {
+        drawn = drawn + select(0.0, 1.0, textureLoad(terrain_depth, pixel, s) > 0.0);
+    }
+    return textureLoad(sea_mask, pixel, 0).r * f32(DEPTH_SAMPLES) > 0.5 * drawn && drawn > 0.0;
+}
 
 @vertex
 fn vs_sky(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
@@ -479,7 +495,7 @@ fn fs_sky(@builtin(position) pixel: vec4<f32>) -> @location(0) vec4<f32> {
     // coasts at coarse LODs). Never over land, even
     // land a coarse LOD rounded down below sea level.
     var sea = -1.0;
-    let sea_bed = textureLoad(sea_mask, vec2<i32>(pixel.xy), 0).r > 0.5;
+    let sea_bed = sea_bed_at(vec2<i32>(pixel.xy));
     let sea_disc = b * b - c;
     var sphere = 3.0e38;
     if (height > 0.0 && sea_disc > 0.0 && -b - sqrt(sea_disc) > 0.0) {

@@ -379,10 +379,13 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 .entry(nebula_meshing::plug_group_key(leaf))
                 .or_insert_with(|| group_plug_choice(columns, leaf) == Some(true) && group_unplug_due(tree, leaf, eye))
     };
-    // Leaves behind the terrain's horizon are drawn as their coarsest
-    // ancestor that is hidden too: a few coarse chunks where the selection
-    // has thousands the eye cannot see. Coarse, not left out: where a
-    // coarse stand-in in front dips below that horizon, what shows through
+    // Leaves behind the terrain's horizon stand for their coarsest ancestor
+    // that is hidden too (a few columns where the selection has thousands
+    // the eye cannot see), and nothing is drawn for it while what is
+    // drawn in front is what the horizon was made of. Where a stand-in
+    // covers a leaf whose floor went into it, its coarse surface may dip
+    // under that floor and bare what lies behind: those hidden columns
+    // meshed are drawn then (`backstops`, below), so what shows through
     // is coarse, never a hole. Hidden from every eye within the margin:
     // the occluder for all of them, its horizon widened.
     let distance = eye.length();
@@ -437,6 +440,8 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
     // whatever came before; every leaf sizes the horizon's bearing bins
     // for that too. (One case still differs now and then: README, "The
     // ground's own horizon".)
+    // The leaves whose meshes' floors the horizon is made of.
+    let mut floored = Vec::new();
     let occluders: Vec<(NodeBounds, Option<f64>)> = tree
         .visible_leaves_with_bounds()
         .zip(&leaf_slots)
@@ -446,7 +451,11 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
                 return (*b, Some(sea.radius));
             }
             let cached = slot.and_then(|slot| columns.in_slot(slot, leaf)).filter(|c| c.ready(leaf, stale));
-            (*b, cached.and_then(CachedColumn::drawn_floor))
+            let floor = cached.and_then(CachedColumn::drawn_floor);
+            if floor.is_some() {
+                floored.push(leaf);
+            }
+            (*b, floor)
         })
         .collect();
     let terrain = TerrainHorizon::new(eye, eye_margin, occluders);
@@ -512,10 +521,19 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         (top.unwrap_or(leaf), hidden)
     };
     let (mut behind_horizon, mut under_the_sea) = (0, 0);
+    // Meshed columns hidden behind the horizon, drawn only where a
+    // stand-in covers a leaf the horizon took a floor from (see above).
+    let mut backstops = Vec::new();
+    #[cfg(test)]
+    let mut behind_horizon_leaves = Vec::new();
     for ((leaf, bounds), &(leaf_slot, planned)) in tree.visible_leaves_with_bounds().zip(&leaf_slots) {
         let (drawn_leaf, hidden) = drawn_for(leaf, Some(bounds));
         // The slot of what is drawn for it: the leaf's, looked up above.
         let own_slot = (drawn_leaf == leaf).then_some(leaf_slot);
+        #[cfg(test)]
+        if hidden == Hidden::BehindHorizon {
+            behind_horizon_leaves.push(leaf);
+        }
         let leaf = drawn_leaf;
         match hidden {
             Hidden::No => {}
@@ -548,13 +566,26 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             && cached.ready(leaf, stale)
         {
             // In use even when a stand-in covering it is drawn instead (a
-            // sibling is not ready): never freed while it is a leaf.
+            // sibling is not ready), or not drawn at all (hidden, a
+            // backstop): never freed while it is a leaf.
             used.push((slot, leaf));
+            if hidden == Hidden::BehindHorizon {
+                backstops.push(leaf);
+                continue;
+            }
             let known = (hidden == Hidden::No).then_some((slot, Some(bounds.min_radius)));
             drawn.push((leaf, known));
             if group_due(leaf) {
                 unplug.push((leaf, bounds));
             }
+            continue;
+        }
+        // Hidden and not meshed: meshed for the view all the same, so that
+        // a settled view holds every backstop it may need once a stand-in
+        // comes. (Not drawn through a meshed ancestor meanwhile: that
+        // ancestor would cover ground in view, drawn finer.)
+        if hidden == Hidden::BehindHorizon {
+            wanted.push((leaf, None));
             continue;
         }
         // A column of a group due, waiting for a layer (meshed open, held
@@ -678,17 +709,13 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
             ancestors.insert(ancestor);
         }
     }
-    let covered = |column: ChunkColumn| {
-        let mut c = column;
-        while c.lod < max_lod {
-            let Some(up) = parent(c) else { break };
-            c = up;
-            if ancestors.contains(&c) {
-                return true;
-            }
-        }
-        false
-    };
+    // The hidden columns are drawn where a stand-in covers a leaf whose
+    // floor the horizon took: it is not what the horizon was made of.
+    let backstops_drawn = !ancestors.is_empty() && floored.iter().any(|&leaf| under_any(ancestors, leaf, max_lod));
+    if backstops_drawn {
+        drawn.extend(backstops.iter().map(|&column| (column, None)));
+    }
+    let covered = |column: ChunkColumn| under_any(ancestors, column, max_lod);
     if !ancestors.is_empty() {
         drawn.retain(|&(c, _)| !covered(c));
         drawn.extend(ancestors.iter().copied().filter(|&c| !covered(c)).map(|c| (c, None)));
@@ -702,7 +729,10 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         occluder_radius: occluder.unwrap_or(f64::NAN),
         holes,
         stand_ins,
+        backstops: if backstops_drawn { backstops.len() } else { 0 },
         max_stand_in_levels: max_levels,
+        #[cfg(test)]
+        behind_horizon_leaves,
         ..DrawList::default()
     };
     drawn_set.extend(drawn.iter().map(|&(c, _)| c));
@@ -871,6 +901,20 @@ pub(crate) fn plan<S: VoxelSource + ?Sized, H: MeshHandle>(
         least_recent,
         millis: start.elapsed().as_secs_f64() * 1e3,
     }
+}
+
+/// Whether a column in `ancestors` (a drawn stand-in) lies above
+/// `column`, up to `max_lod`.
+fn under_any(ancestors: &HashSet<ChunkColumn>, column: ChunkColumn, max_lod: u8) -> bool {
+    let mut c = column;
+    while c.lod < max_lod {
+        let Some(up) = parent(c) else { break };
+        c = up;
+        if ancestors.contains(&c) {
+            return true;
+        }
+    }
+    false
 }
 
 /// Cached columns with their slots.

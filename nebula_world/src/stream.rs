@@ -21,12 +21,14 @@
 //!
 //! ```text
 //!   for each visible leaf L of the LOD tree:
-//!     L behind the terrain's horizon → L := its coarsest ancestor that is
-//!                                    hidden too (the sphere under the
-//!                                    ground near the eye,
+//!     L behind the terrain's horizon → nothing drawn for it (the sphere
+//!                                    under the ground near the eye,
 //!                                    LodTree::horizon_occluder, or the
 //!                                    ground in front bearing by bearing,
-//!                                    TerrainHorizon)
+//!                                    TerrainHorizon); its coarsest hidden
+//!                                    ancestor is meshed, and drawn while
+//!                                    a stand-in covers ground that
+//!                                    horizon was made of
 //!     L under an opaque sea          → L := its coarsest ancestor under it
 //!                                    with sea bed on every side (OpaqueSea)
 //!     L's column meshed            → draw L
@@ -149,10 +151,12 @@ pub struct DrawOptions {
     /// of the triangles. Off: every side drawn (the rasteriser culls the
     /// back faces).
     pub cull_back_sides: bool,
-    /// Draw the leaves that the ground in front hides, bearing by bearing
-    /// ([`TerrainHorizon`](nebula_lod::TerrainHorizon)), as their coarsest
-    /// hidden ancestor (off: only those behind the horizon sphere,
-    /// [`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)).
+    /// Leave out the leaves that the ground in front hides, bearing by
+    /// bearing ([`TerrainHorizon`](nebula_lod::TerrainHorizon)): their
+    /// coarsest hidden ancestor is drawn only as a backstop
+    /// ([`DrawList::backstops`]); off: only those behind the horizon
+    /// sphere are
+    /// ([`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)).
     pub terrain_occlusion: bool,
 }
 
@@ -1135,12 +1139,12 @@ impl<S, H> Meshing<S, H> {
 /// bed wholly deeper than that is hidden, so the streamer draws it as its
 /// coarsest ancestor that is hidden too ([`VoxelSource::sea_bed_below`])
 /// and has hidden sea bed across all four sides (so no leaf drawn in
-/// detail borders it), instead of meshing it in detail, as it does behind
-/// the horizon.
+/// detail borders it), instead of meshing it in detail.
 ///
-/// Why coarse and not left out: whatever the renderer shows where nothing
-/// is drawn, a coarse chunk in its place keeps it from showing what lies
-/// behind the sea bed.
+/// Why coarse and not left out (as behind the horizon, where the ground in
+/// front covers the place): the sea is drawn over the place itself, and
+/// whatever the renderer shows where nothing is drawn, a coarse chunk in
+/// its place keeps it from showing what lies behind the sea bed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OpaqueSea {
     /// Radius of the sea's surface, metres.
@@ -1199,9 +1203,19 @@ pub struct DrawList {
     /// ([`LodTree::horizon_occluder`](nebula_lod::LodTree::horizon_occluder)),
     /// metres; NaN where the source knows no lowest surface.
     pub occluder_radius: f64,
-    /// Leaves in the frustum behind that horizon, drawn as their coarsest
-    /// hidden ancestor instead of being meshed.
+    /// Leaves in the frustum behind that horizon or the ground's in front:
+    /// not drawn (their coarsest hidden ancestor is meshed all the same,
+    /// and drawn as a backstop while a stand-in covers ground the horizon
+    /// was made of: [`DrawList::backstops`]).
     pub behind_horizon: usize,
+    /// Those leaves (tests only: what a draw list may leave uncovered).
+    #[cfg(test)]
+    pub(crate) behind_horizon_leaves: Vec<ChunkColumn>,
+    /// Columns hidden behind the horizon drawn as backstops this frame: a
+    /// stand-in drawn in front covers a leaf whose floor the ground's
+    /// horizon took, so that horizon is not quite what is drawn (0 once a
+    /// view has settled).
+    pub backstops: usize,
     /// Columns whose tight tops the ground's horizon waits for
     /// ([`VoxelSource::surface_top_radius`], a few hundred sampled a
     /// plan): drawn in detail meanwhile, so the view is not final until
@@ -1279,9 +1293,11 @@ pub struct StreamFigures {
     pub stand_ins: usize,
     /// Visible leaves with nothing drawn for them.
     pub holes: usize,
-    /// Leaves behind the terrain's horizon, drawn coarse
+    /// Leaves behind the terrain's horizon, not drawn
     /// ([`DrawList::behind_horizon`]).
     pub behind_horizon: usize,
+    /// Hidden columns drawn as backstops ([`DrawList::backstops`]).
+    pub backstops: usize,
     /// Leaves under the opaque sea, drawn coarse ([`DrawList::under_sea`]).
     pub under_sea: usize,
     /// Largest LOD difference between neighbouring leaves.
@@ -2348,11 +2364,24 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         self.voxels = voxels;
         let stitched = self.stitched_across(dirty);
         let dirty = &[dirty, &stitched].concat();
-        // An edit can put anything on the sea bed, and moves bounds.
-        self.selection_mut().under_sea.clear();
-        self.selection_mut().tops.clear();
         self.culled_for = None;
         let columns: HashSet<ChunkColumn> = dirty.iter().map(|key| key.column()).collect();
+        // An edit can put anything on the sea bed, and moves tops: those
+        // of the columns it touched and of every column above them are
+        // asked again. Only those: the rest of a view's hidden ground
+        // stays hidden (with every top forgotten, a plan samples a few
+        // hundred again and draws the rest as if seen, through coarse
+        // stand-ins where their own meshes were never made).
+        let mut touched: HashSet<ChunkColumn> = HashSet::default();
+        for &column in &columns {
+            let mut up = Some(column);
+            while let Some(c) = up.filter(|&c| touched.insert(c)) {
+                up = parent(c);
+            }
+        }
+        let selection = self.selection_mut();
+        selection.under_sea.retain(|column, _| !touched.contains(column));
+        selection.tops.retain(|column, _| !touched.contains(column));
         // The next job a worker takes reads the new voxels; only the jobs
         // running now read the old ones, so only their meshes need checking
         // (all under one lock: no job is taken in between).
@@ -2607,6 +2636,7 @@ impl<S: VoxelSource + 'static, H: MeshHandle> Streamer<S, H> {
         figures.threshold_px = self.tree.screen_space().threshold_px();
         figures.stand_ins = self.draw.stand_ins;
         figures.behind_horizon = self.draw.behind_horizon;
+        figures.backstops = self.draw.backstops;
         figures.under_sea = self.draw.under_sea;
         figures.holes = self.draw.holes;
         figures.max_neighbor_lod_diff = self.tree.stats().max_neighbor_lod_diff;
