@@ -1710,8 +1710,8 @@ impl GpuTimer {
 
 /// The shader with the terrain's depth declared multisampled, for the sky
 /// pass over a multisampled terrain (`textureLoad`'s last argument is then
-/// the sample, 0, where it was the mip level, 0), and its samples a pixel
-/// ([`SMOOTH_SAMPLES`]) counted.
+/// the sample where it was the mip level, 0), with `DEPTH_SAMPLES` (the
+/// samples its loops over a pixel read) [`SMOOTH_SAMPLES`].
 fn multisampled_depth_shader() -> String {
     const DECLARATION: &str = "var terrain_depth: texture_depth_2d;";
     let source = include_str!("shader.wgsl");
